@@ -1,0 +1,77 @@
+"""The ``terradyn`` command line: a thin layer over the Python API.
+
+Each area lives in its own module with a ``register(app)`` function; this module collects
+them. Data go to stdout or files, messages to stderr; bad input exits with code 2 and one
+line naming the field.
+"""
+from __future__ import annotations
+
+import importlib
+import importlib.util
+import sys
+
+import typer
+
+from ..errors import InputError
+
+app = typer.Typer(
+    name="terradyn",
+    help="Forces on legs and feet moving through granular media (RFT, SPH, DDDAS).",
+    no_args_is_help=True,
+    add_completion=False,
+    pretty_exceptions_enable=False,
+    context_settings={"help_option_names": ["-h", "--help"]},
+)
+
+_AREAS = ("rft", "study", "sph", "dddas", "experiment", "sweep", "selftest")
+
+
+def _register_all() -> None:
+    for name in _AREAS:
+        mod = f"{__name__}.{name}"
+        if importlib.util.find_spec(mod) is not None:
+            importlib.import_module(mod).register(app)
+
+
+@app.callback()
+def _root(version: bool = typer.Option(False, "--version", help="Print the version and exit.")):
+    """terradyn: forces on legs and feet in granular media."""
+    if version:
+        from .. import __version__
+
+        typer.echo(__version__)
+        raise typer.Exit()
+
+
+def err(msg: str) -> None:
+    """A message for the user, on stderr."""
+    from rich.console import Console
+
+    Console(stderr=True, highlight=False).print(msg)
+
+
+def main(argv: list[str] | None = None) -> int:
+    import click
+
+    _register_all()
+    try:
+        app(args=argv, standalone_mode=False)
+    except InputError as e:
+        err(f"[bold red]error:[/] {e}")
+        return 2
+    except click.exceptions.Exit as e:
+        return e.exit_code
+    except click.ClickException as e:
+        e.show()
+        return 2
+    except (click.exceptions.Abort, KeyboardInterrupt):
+        err("interrupted")
+        return 130
+    except FileNotFoundError as e:
+        err(f"[bold red]error:[/] file not found: {e.filename}")
+        return 2
+    return 0
+
+
+def run() -> None:  # console-script entry point
+    sys.exit(main())

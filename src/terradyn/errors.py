@@ -1,0 +1,80 @@
+"""Errors that terradyn raises for bad input.
+
+Every check on user input raises :class:`InputError`, which names the offending field
+and what is allowed. The CLI turns it into a one-line message and exit code 2.
+"""
+from __future__ import annotations
+
+import math
+from typing import Any
+
+import numpy as np
+
+
+class InputError(ValueError):
+    """Bad user input: ``field`` names the input, the message says what is allowed."""
+
+    def __init__(self, field: str, message: str):
+        self.field = field
+        super().__init__(f"{field}: {message}")
+
+
+def positive(field: str, value: Any, unit: str = "") -> float:
+    """Return ``value`` as a float, or raise if it is not a finite number > 0."""
+    v = finite(field, value, unit)
+    if v <= 0:
+        raise InputError(field, f"must be > 0{' ' + unit if unit else ''}, got {value!r}")
+    return v
+
+
+def finite(field: str, value: Any, unit: str = "") -> float:
+    try:
+        v = float(value)
+    except (TypeError, ValueError):
+        raise InputError(field, f"must be a number{' in ' + unit if unit else ''}, got {value!r}") from None
+    if not math.isfinite(v):
+        raise InputError(field, f"must be finite, got {value!r}")
+    return v
+
+
+def in_range(field: str, value: Any, lo: float, hi: float, unit: str = "") -> float:
+    v = finite(field, value, unit)
+    if not lo <= v <= hi:
+        u = f" {unit}" if unit else ""
+        raise InputError(field, f"must be in [{lo:g}, {hi:g}]{u}, got {value!r}")
+    return v
+
+
+def integer(field: str, value: Any, minimum: int) -> int:
+    try:
+        v = int(value)
+    except (TypeError, ValueError):
+        raise InputError(field, f"must be an integer >= {minimum}, got {value!r}") from None
+    if v != value and not (isinstance(value, float) and value.is_integer()):
+        raise InputError(field, f"must be an integer >= {minimum}, got {value!r}")
+    if v < minimum:
+        raise InputError(field, f"must be an integer >= {minimum}, got {value!r}")
+    return v
+
+
+def finite_array(field: str, values: Any, ndim: int | None = None) -> np.ndarray:
+    """Convert to a float array; raise if it is empty, non-numeric or has NaN/inf."""
+    try:
+        a = np.asarray(values, dtype=float)
+    except (TypeError, ValueError):
+        raise InputError(field, "must contain only numbers") from None
+    if a.size == 0:
+        raise InputError(field, "is empty")
+    if ndim is not None and a.ndim != ndim:
+        raise InputError(field, f"must be {ndim}-dimensional, got shape {a.shape}")
+    bad = ~np.isfinite(a)
+    if bad.any():
+        idx = np.argwhere(bad)[0]
+        raise InputError(field, f"contains a non-finite value at index {tuple(int(i) for i in idx)}")
+    return a
+
+
+def choice(field: str, value: str, allowed: list[str] | tuple[str, ...]) -> str:
+    if value not in allowed:
+        raise InputError(field, f"unknown value {value!r}; allowed: {', '.join(allowed)}")
+    return value

@@ -1,0 +1,94 @@
+"""Reading and writing force series: NetCDF (.nc), Zarr (.zarr) and CSV (.csv)."""
+from __future__ import annotations
+
+import io as _io
+import sys
+from pathlib import Path
+
+import numpy as np
+import xarray as xr
+
+from .errors import InputError
+from .series import coord_of, validate
+
+FORMATS = (".nc", ".zarr", ".csv")
+
+
+def _fmt(path: Path) -> str:
+    suf = path.suffix.lower()
+    if suf not in FORMATS:
+        raise InputError("out", f"unsupported file type {suf or '(none)'!r} for {path}; use one of {', '.join(FORMATS)}")
+    return suf
+
+
+def to_csv_text(ds: xr.Dataset) -> str:
+    """A force series (or a stack along ``case``) as CSV text, one row per sample."""
+    df = ds.drop_vars([v for v in ds.data_vars if ds[v].ndim == 0]).to_dataframe().reset_index()
+    buf = _io.StringIO()
+    units = {n: ds[n].attrs.get("units") for n in list(ds.variables)}
+    df.columns = [f"{c}_{units[c].replace(' ', '_')}" if units.get(c) else c for c in df.columns]
+    df.to_csv(buf, index=False, float_format="%.10g")
+    return buf.getvalue()
+
+
+def write(ds: xr.Dataset, path: str | Path) -> Path:
+    """Write ``ds`` to ``path`` (.nc, .zarr or .csv), atomically for files: a crash never
+    leaves a half-written file under the final name."""
+    path = Path(path)
+    suf = _fmt(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    if suf == ".zarr":
+        ds.to_zarr(path, mode="w")
+        return path
+    tmp = path.with_name(f".{path.name}.tmp")
+    if suf == ".nc":
+        ds.to_netcdf(tmp, engine="h5netcdf")
+    else:
+        tmp.write_text(to_csv_text(ds))
+    tmp.replace(path)
+    return path
+
+
+def read(path: str | Path) -> xr.Dataset:
+    """Read a force series written by :func:`write` (.nc, .zarr, or .csv with a theta_deg or
+    time_s column and Fx_N, Fz_N)."""
+    path = Path(path)
+    suf = _fmt(path)
+    if not path.exists():
+        raise InputError("file", f"not found: {path}")
+    if suf == ".nc":
+        with xr.open_dataset(path, engine="h5netcdf") as f:
+            return f.load()
+    if suf == ".zarr":
+        return xr.open_zarr(path).load()
+    return read_csv(path)
+
+
+def read_csv(path: Path) -> xr.Dataset:
+    import pandas as pd
+
+    try:
+        df = pd.read_csv(path)
+    except Exception as e:  # pandas raises many kinds
+        raise InputError("file", f"{path}: not a readable CSV ({e})") from None
+    coord = "theta" if "theta_deg" in df else "time" if "time_s" in df else None
+    if coord is None or not {"Fx_N", "Fz_N"} <= set(df.columns):
+        raise InputError("file", f"{path}: need a theta_deg or time_s column and Fx_N, Fz_N; got {list(df.columns)}")
+    ren = {c: c.rsplit("_", 1)[0] for c in df.columns if c.endswith(("_N", "_deg", "_s", "_N_m"))}
+    ren.update({c: c[: -len("_N_m")] for c in df.columns if c.endswith("_N_m")})
+    df = df.rename(columns=ren)
+    ds = xr.Dataset.from_dataframe(df.set_index(coord))
+    for v in ds.data_vars:
+        ds[v] = ds[v].astype(float)
+    if not np.isfinite(ds["Fx"]).all() or not np.isfinite(ds["Fz"]).all():
+        raise InputError("file", f"{path}: Fx_N/Fz_N contain empty or non-finite values")
+    coord_of(ds)
+    return validate(ds)
+
+
+def emit(ds: xr.Dataset, out: str | None) -> None:
+    """Write to ``out`` or, when it is None or '-', CSV on stdout."""
+    if out in (None, "-"):
+        sys.stdout.write(to_csv_text(ds))
+    else:
+        write(ds, out)

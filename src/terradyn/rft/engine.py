@@ -1,0 +1,225 @@
+"""The RFT force engine: any leg, any planar rigid motion, any stress model.
+
+For every element i and time step j the engine places the element in the world
+(``r = R(theta) s``, ``v = v_hip + omega x r``), takes its depth below the free surface
+(z = 0), its attack angle beta (tangent angle from horizontal) and intrusion angle gamma
+(direction of v below horizontal), looks up the stress per depth alpha(beta, gamma) and adds
+
+    f_z = alpha_z * depth * area,   f_x = -alpha_x * depth * area
+
+(alpha_x > 0 opposes the horizontal motion; the symmetry relations of Li 2013 make this one
+formula valid for motion in either direction). Elements above the surface, or at rest, feel
+nothing. Net force is the sum over elements, torque the sum of r x f about the hip
+(anticlockwise positive).
+
+Two paths compute the same thing:
+
+* :func:`element_states` / :func:`element_forces` - NumPy, any stress model (tables,
+  user models), all per-element quantities available (frames, diagnostics);
+* a compiled kernel for the Fourier fit (:func:`net_forces` picks it): no trigonometric call
+  per element - cos 2beta, sin 2beta come from the body-frame tangent rotated by 2 theta and
+  cos gamma, sin gamma from the normalised velocity - parallel over designs x steps.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numba
+import numpy as np
+
+from ..geometry import Elements, Leg
+from ..media import FourierFit, StressModel
+from ..motion import Trajectory
+
+#: Speeds below this (m/s) count as "at rest": RFT gives no force.
+REST_SPEED = 1e-12
+
+
+@dataclass(frozen=True, eq=False)
+class ElementStates:
+    """Per-element kinematics, arrays (S, n): world position x, z (m); depth below the surface
+    (m, clipped at 0); beta, gamma (rad); velocity vx, vz (m/s)."""
+
+    x: np.ndarray
+    z: np.ndarray
+    depth: np.ndarray
+    beta: np.ndarray
+    gamma: np.ndarray
+    vx: np.ndarray
+    vz: np.ndarray
+
+
+def element_states(el: Elements, traj: Trajectory, surface: float = 0.0) -> ElementStates:
+    """Kinematics of every element at every step (NumPy, (S, n) arrays)."""
+    c = np.cos(traj.angle)[:, None]
+    s = np.sin(traj.angle)[:, None]
+    sx, sz = el.centers[:, 0], el.centers[:, 1]
+    rx = c * sx + s * sz  # clockwise rotation by the leg angle
+    rz = -s * sx + c * sz
+    tx = c * el.tangents[:, 0] + s * el.tangents[:, 1]
+    tz = -s * el.tangents[:, 0] + c * el.tangents[:, 1]
+    w = traj.angular_velocity[:, None]
+    vx = traj.hip_vx[:, None] + w * rz
+    vz = traj.hip_vz[:, None] - w * rx
+    x = traj.hip_x[:, None] + rx
+    z = traj.hip_z[:, None] + rz
+    beta = np.arctan2(tz, tx)
+    beta = np.mod(beta + np.pi / 2, np.pi) - np.pi / 2  # a plate is the same after a half turn
+    gamma = np.arctan2(-vz, vx)
+    depth = np.maximum(surface - z, 0.0)
+    return ElementStates(x, z, depth, beta, gamma, vx, vz)
+
+
+def element_forces(el: Elements, traj: Trajectory, model: StressModel, surface: float = 0.0,
+                   states: ElementStates | None = None):
+    """Force on each element, (fx, fz) arrays (S, n) in N, and the states used."""
+    st = states if states is not None else element_states(el, traj, surface)
+    touching = (st.depth > 0) & (np.hypot(st.vx, st.vz) > REST_SPEED)
+    fx = np.zeros_like(st.depth)
+    fz = np.zeros_like(st.depth)
+    if touching.any():
+        ax, az = model.alpha(st.beta[touching], st.gamma[touching])
+        load = st.depth[touching] * np.broadcast_to(el.areas, st.depth.shape)[touching]
+        fx[touching] = -np.asarray(ax) * load
+        fz[touching] = np.asarray(az) * load
+    return fx, fz, st
+
+
+def _net_numpy(el: Elements, traj: Trajectory, model: StressModel, surface: float):
+    fx, fz, st = element_forces(el, traj, model, surface)
+    rx = st.x - traj.hip_x[:, None]
+    rz = st.z - traj.hip_z[:, None]
+    return fx.sum(1), fz.sum(1), (rx * fz - rz * fx).sum(1)
+
+
+# ------------------------------------------------------------------------------------------
+# Compiled Fourier-fit kernel
+# ------------------------------------------------------------------------------------------
+@numba.njit(inline="always", fastmath=True)
+def _alpha(coef, c2, s2, cg, sg):  # pragma: no cover - compiled
+    """Fourier fit from cos/sin of 2 beta and gamma: (alpha_x, alpha_z), no trig calls."""
+    az = (coef[0] + coef[1] * c2 + coef[2] * (s2 * cg + c2 * sg) + coef[3] * sg
+          + coef[4] * (c2 * sg - s2 * cg))
+    ax = coef[5] * (c2 * cg - s2 * sg) + coef[6] * cg + coef[7] * (c2 * cg + s2 * sg) + coef[8] * s2
+    return ax, az
+
+
+@numba.njit(parallel=True, fastmath=True, cache=True, error_model="numpy")
+def _fourier_kernel(sx, sz, c2b, s2b, area, inv_s, hx, hz, vhx, vhz, ang_c, ang_s, c2t, s2t, w,
+                    coef, surface, out):  # pragma: no cover - compiled
+    """sx, sz, c2b, s2b, area, inv_s: (D, n) body-frame element data (zero area pads);
+    trajectory arrays (S,); coef (9,) N/m^3; out (D, S, 3): Fx, Fz, torque.
+
+    Generic in the float type: every constant takes the type of ``sx``. When the hip is at
+    rest the element speed is |omega| |s|, so 1/|v| comes from the precomputed 1/|s| (no
+    square root); otherwise from the velocity itself.
+    """
+    D, n = sx.shape
+    S = hx.shape[0]
+    zero = sx.dtype.type(0.0)
+    one = sx.dtype.type(1.0)
+    rest = sx.dtype.type(1e-24)
+    for k in numba.prange(D * S):
+        d = k // S
+        j = k - d * S
+        c, s, cc, ss, wj = ang_c[j], ang_s[j], c2t[j], s2t[j], w[j]
+        ux, uz = vhx[j], vhz[j]
+        depth0 = surface - hz[j]
+        sxd, szd, c2d, s2d, ad, isd = sx[d], sz[d], c2b[d], s2b[d], area[d], inv_s[d]
+        fx_sum = zero
+        fz_sum = zero
+        tq_sum = zero
+        if ux == zero and uz == zero:
+            # Hip at rest: v = w (rz, -rx), |v| = |w| |s|.
+            sgn = zero if wj == zero else (one if wj > zero else -one)
+            for i in range(n):
+                rx = c * sxd[i] + s * szd[i]
+                rz = -s * sxd[i] + c * szd[i]
+                c2 = c2d[i] * cc + s2d[i] * ss  # 2 beta = 2 beta_body - 2 theta
+                s2 = s2d[i] * cc - c2d[i] * ss
+                ax, az = _alpha(coef, c2, s2, sgn * rz * isd[i], sgn * rx * isd[i])
+                load = max(depth0 - rz, zero) * ad[i] * sgn * sgn
+                fx_sum -= ax * load
+                fz_sum += az * load
+                tq_sum += (rx * az + rz * ax) * load
+        else:
+            for i in range(n):
+                rx = c * sxd[i] + s * szd[i]
+                rz = -s * sxd[i] + c * szd[i]
+                vx = ux + wj * rz
+                vz = uz - wj * rx
+                v2 = vx * vx + vz * vz
+                inv = one / np.sqrt(v2 + rest * rest)
+                c2 = c2d[i] * cc + s2d[i] * ss
+                s2 = s2d[i] * cc - c2d[i] * ss
+                ax, az = _alpha(coef, c2, s2, vx * inv, -vz * inv)
+                load = max(depth0 - rz, zero) * (ad[i] if v2 > rest else zero)
+                fx_sum -= ax * load
+                fz_sum += az * load
+                tq_sum += (rx * az + rz * ax) * load
+        out[d, j, 0] = fx_sum
+        out[d, j, 1] = fz_sum
+        out[d, j, 2] = tq_sum
+
+
+@dataclass(frozen=True, eq=False)
+class PackedElements:
+    """Element sets of D designs padded to (D, n_max) arrays for the compiled kernel."""
+
+    sx: np.ndarray
+    sz: np.ndarray
+    c2b: np.ndarray
+    s2b: np.ndarray
+    area: np.ndarray
+    inv_s: np.ndarray
+
+    @classmethod
+    def of(cls, elements: list[Elements], dtype=np.float64) -> "PackedElements":
+        D = len(elements)
+        n = max(len(e) for e in elements)
+        a = {k: np.zeros((D, n)) for k in ("sx", "sz", "c2b", "s2b", "area", "inv_s")}
+        for d, e in enumerate(elements):
+            m = len(e)
+            a["sx"][d, :m], a["sz"][d, :m] = e.centers[:, 0], e.centers[:, 1]
+            tx, tz = e.tangents[:, 0], e.tangents[:, 1]
+            a["c2b"][d, :m] = tx * tx - tz * tz
+            a["s2b"][d, :m] = 2 * tx * tz
+            r = np.hypot(e.centers[:, 0], e.centers[:, 1])
+            a["inv_s"][d, :m] = np.where(r > 0, 1 / np.where(r > 0, r, 1), 0.0)
+            a["area"][d, :m] = np.where(r > 0, e.areas, 0.0)  # an element on the axis never moves
+        return cls(**{k: np.ascontiguousarray(v, dtype=dtype) for k, v in a.items()})
+
+
+def _net_fourier(packed: PackedElements, traj: Trajectory, fit: FourierFit, surface: float,
+                 ) -> np.ndarray:
+    dt = packed.sx.dtype
+    out = np.empty((packed.sx.shape[0], len(traj), 3), dtype=dt)
+    _fourier_kernel(packed.sx, packed.sz, packed.c2b, packed.s2b, packed.area, packed.inv_s,
+                    *traj.kernel_arrays(dt), fit.as_array(dt), dt.type(surface), out)
+    return out
+
+
+def net_forces(leg: Leg | Elements, traj: Trajectory, model: StressModel, surface: float = 0.0):
+    """Net (Fx, Fz, torque), each (S,), N and N m. Uses the compiled kernel for a
+    :class:`FourierFit`, NumPy for any other stress model."""
+    el = leg.elements() if isinstance(leg, Leg) else leg
+    if isinstance(model, FourierFit):
+        out = _net_fourier(PackedElements.of([el]), traj, model, surface)[0]
+        return out[:, 0], out[:, 1], out[:, 2]
+    return _net_numpy(el, traj, model, surface)
+
+
+def batch_forces(legs: list[Leg | Elements] | PackedElements, traj: Trajectory,
+                 model: StressModel, surface: float = 0.0, dtype=np.float64) -> np.ndarray:
+    """Net forces for many designs under one motion: array (D, S, 3) of Fx, Fz (N), torque
+    (N m). Designs may have different numbers of elements. ``dtype=np.float32`` roughly
+    doubles the Fourier-fit throughput (8-wide SIMD, hardware reciprocal square root) at
+    ~1e-6 relative precision; pass a :class:`PackedElements` to reuse packing."""
+    if isinstance(legs, PackedElements):
+        if not isinstance(model, FourierFit):
+            raise TypeError("PackedElements only work with a FourierFit stress model")
+        return _net_fourier(legs, traj, model, surface)
+    els = [leg.elements() if isinstance(leg, Leg) else leg for leg in legs]
+    if isinstance(model, FourierFit):
+        return _net_fourier(PackedElements.of(els, dtype), traj, model, surface)
+    return np.stack([np.stack(_net_numpy(e, traj, model, surface), -1) for e in els])
