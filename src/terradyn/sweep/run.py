@@ -1,0 +1,258 @@
+"""Running the cases of a sweep: in-process, on a local process pool, or on Dask.
+
+Workers compute and return force series; the driver alone writes the store (see
+:mod:`terradyn.sweep.store`), skipping finished cases, so a rerun resumes where a crash or
+kill left off. One bad case records its error and the others go on.
+"""
+from __future__ import annotations
+
+import os
+import platform
+import socket
+import time
+import traceback
+from concurrent.futures import ProcessPoolExecutor, as_completed
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Callable
+
+from ..errors import InputError
+from .spec import SweepSpec, build, load
+
+#: Environment variable naming the Dask scheduler (``tcp://host:8786``) when --scheduler is not given.
+SCHEDULER_ENV = "TERRADYN_DASK_SCHEDULER"
+THREAD_VARS = ("NUMBA_NUM_THREADS", "OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS")
+
+
+@dataclass
+class Summary:
+    """What a run did: case counts, failures (id -> error line) and wall time (s)."""
+
+    store: str
+    total: int
+    skipped: int = 0
+    done: int = 0
+    failed: dict = field(default_factory=dict)
+    wall_s: float = 0.0
+    executor: str = ""
+    workers: int = 0
+
+    @property
+    def ok(self) -> bool:
+        return not self.failed
+
+    def to_dict(self) -> dict:
+        return {"store": self.store, "total": self.total, "skipped": self.skipped, "done": self.done,
+                "failed": self.failed, "wall_s": self.wall_s, "executor": self.executor,
+                "workers": self.workers}
+
+
+# ------------------------------------------------------------------------------------------
+# the task (runs on a worker)
+# ------------------------------------------------------------------------------------------
+def _single_thread() -> None:
+    """One compute thread per worker: set the thread variables (read when numba/BLAS load)
+    and, if numba is already loaded, cap its pool now."""
+    for v in THREAD_VARS:
+        os.environ[v] = "1"
+    import sys
+
+    if "numba" in sys.modules:
+        import numba
+
+        numba.set_num_threads(1)
+
+
+def simulate_case(params: dict):
+    """Run one resolved case (see :func:`terradyn.sweep.spec.resolve`) -> force series."""
+    leg, motion = build(params)
+    m = params["model"]
+    if m["name"] == "rft":
+        from ..rft import simulate
+        from .spec import _stress_model
+        import json
+
+        key = json.dumps({k: v for k, v in m.items() if k != "name"}, sort_keys=True)
+        return simulate(leg, motion, _stress_model(key), medium=m["medium"])
+    if m["name"] == "sph":
+        sph = _sph_module()
+        opts = dict(m.get("options", {}))
+        if "resolution" in m:
+            opts["resolution"] = m["resolution"]
+        return sph.simulate(leg, motion, material=m["medium"], quick=m["quick"], seed=m["seed"], **opts)
+    raise InputError("sweep.model", f"unknown model {m['name']!r}")
+
+
+def _sph_module():
+    import importlib
+    import importlib.util
+
+    if importlib.util.find_spec("terradyn.sph") is None:
+        raise InputError("sweep.model", "'sph' needs terradyn.sph, which this installation does not have yet")
+    return importlib.import_module("terradyn.sph")
+
+
+def run_case(cid: str, params: dict, single_thread: bool = True):
+    """The unit of work: simulate one case and return (cid, force series with provenance)."""
+    if single_thread:
+        _single_thread()
+    from .. import __version__
+    import json
+
+    t0, started = time.perf_counter(), time.time()
+    ds = simulate_case(params)
+    wall = time.perf_counter() - t0
+    ds.attrs.update(sweep_case_id=cid, sweep_params=json.dumps(params, sort_keys=True),
+                    sweep_wall_time_s=wall, sweep_host=socket.gethostname(), sweep_pid=os.getpid(),
+                    sweep_started=time.strftime("%Y-%m-%dT%H:%M:%SZ", time.gmtime(started)),
+                    sweep_python=platform.python_version(), terradyn_version=__version__)
+    return cid, ds
+
+
+# ------------------------------------------------------------------------------------------
+# executors: each yields (cid, dataset or None, error or None) as cases finish
+# ------------------------------------------------------------------------------------------
+def _err(e: BaseException) -> str:
+    return f"{type(e).__name__}: {e}"
+
+
+def _tb(e: BaseException) -> str:
+    return "".join(traceback.format_exception(type(e), e, e.__traceback__))[-4000:]
+
+
+def _serial(todo):
+    for c in todo:
+        try:
+            yield run_case(c.id, c.params, single_thread=False) + (None,)
+        except Exception as e:  # one bad case does not stop the others
+            yield c.id, None, e
+
+
+def _pool_init():
+    _single_thread()
+
+
+def _local(todo, workers: int):
+    import multiprocessing as mp
+
+    # spawn: workers start clean, read the thread variables before numba loads, and do not
+    # inherit the driver's threads (fork after numba/BLAS threads start is unsafe).
+    ctx = mp.get_context("spawn")
+    ex = ProcessPoolExecutor(max_workers=workers, mp_context=ctx, initializer=_pool_init)
+    finished = False
+    try:
+        futs = {ex.submit(run_case, c.id, c.params): c.id for c in todo}
+        for f in as_completed(futs):
+            try:
+                yield f.result() + (None,)
+            except Exception as e:  # includes BrokenProcessPool: a worker died
+                yield futs[f], None, e
+        finished = True
+    finally:
+        # On Ctrl-C (or the consumer stopping) do not wait for queued cases.
+        ex.shutdown(wait=finished, cancel_futures=True)
+
+
+def _dask(todo, address: str, retries: int):
+    try:
+        from distributed import Client, as_completed as d_completed
+    except ImportError:  # pragma: no cover - a dependency
+        raise InputError("scheduler", "Dask execution needs dask[distributed] installed") from None
+    try:
+        client = Client(address, timeout="20s")
+    except (OSError, TimeoutError) as e:
+        raise InputError("scheduler", f"cannot reach the Dask scheduler at {address!r} ({e})") from None
+    try:
+        futs = {}
+        for c in todo:
+            f = client.submit(run_case, c.id, c.params, key=f"terradyn-case-{c.id}-{os.urandom(4).hex()}",
+                              pure=False, retries=retries)
+            futs[f.key] = (c.id, f)
+        for f in d_completed([f for _, f in futs.values()]):
+            cid = futs[f.key][0]
+            try:
+                yield f.result() + (None,)
+            except Exception as e:
+                yield cid, None, e
+            finally:
+                f.release()
+    finally:
+        client.close()
+
+
+# ------------------------------------------------------------------------------------------
+# the driver
+# ------------------------------------------------------------------------------------------
+def default_store(spec: SweepSpec) -> Path:
+    return Path(f"{spec.name}.sweep")
+
+
+def run(spec: SweepSpec | str | Path, store: str | Path | None = None, *, workers: int | None = None,
+        scheduler: str | None = None, retries: int = 0,
+        progress: Callable[[int, int, str, bool], None] | None = None) -> Summary:
+    """Run every unfinished case of ``spec`` into ``store`` (default ``<name>.sweep``).
+
+    Executor: Dask when ``scheduler`` (or env ``TERRADYN_DASK_SCHEDULER``) names a scheduler
+    address; else a local process pool of ``workers`` processes (default: all cores) with
+    one compute thread each; ``workers=0`` runs in this process. ``retries``: extra attempts
+    of a case that raised (Dask only; cases on a lost worker are rescheduled by Dask anyway).
+    ``progress(done, total, case_id, ok)`` is called after each case. Returns a
+    :class:`Summary`; failed cases are recorded in the store and retried by the next run.
+    """
+    from .store import Store
+
+    if not isinstance(spec, SweepSpec):
+        spec = load(spec)
+    if spec.model == "sph":
+        _sph_module()
+    scheduler = scheduler or os.environ.get(SCHEDULER_ENV) or None
+    if workers is not None and (not isinstance(workers, int) or workers < 0):
+        raise InputError("workers", f"must be an integer >= 0, got {workers!r}")
+    if not isinstance(retries, int) or retries < 0:
+        raise InputError("retries", f"must be an integer >= 0, got {retries!r}")
+    st = Store(store if store is not None else default_store(spec))
+    st.lock()
+    try:
+        st.clean_temporaries()
+        st.write_plan(spec)
+        done = st.done_ids()
+        todo = [c for c in spec.cases if c.id not in done]
+        total = len(spec.cases)
+        if scheduler:
+            executor, nw = "dask", 0
+            stream = _dask(todo, scheduler, retries)
+        elif workers == 0 or len(todo) <= 1:
+            executor, nw = "serial", 1
+            stream = _serial(todo)
+        else:
+            nw = min(workers or os.cpu_count() or 1, len(todo))
+            executor = "local"
+            stream = _local(todo, nw)
+        summary = Summary(store=str(st.path), total=total, skipped=total - len(todo), executor=executor,
+                          workers=nw)
+        run_id = os.urandom(6).hex()
+        st.log("run-start", run=run_id, executor=executor, scheduler=scheduler, workers=nw,
+               todo=len(todo), total=total, host=socket.gethostname(), pid=os.getpid())
+        t0 = time.perf_counter()
+        n = summary.skipped
+        if progress:
+            progress(n, total, "", True)
+        for cid, ds, e in stream:
+            n += 1
+            if e is None:
+                st.write_case(cid, ds)
+                summary.done += 1
+                st.log("case-done", run=run_id, case=cid, host=ds.attrs.get("sweep_host"),
+                       pid=ds.attrs.get("sweep_pid"), wall_s=ds.attrs.get("sweep_wall_time_s"))
+            else:
+                summary.failed[cid] = _err(e)
+                st.write_failure(cid, {"case": cid, "error": _err(e), "traceback": _tb(e), "run": run_id,
+                                       "time": time.strftime("%Y-%m-%dT%H:%M:%SZ", time.gmtime())})
+                st.log("case-failed", run=run_id, case=cid, error=_err(e))
+            if progress:
+                progress(n, total, cid, e is None)
+        summary.wall_s = time.perf_counter() - t0
+        st.log("run-end", run=run_id, done=summary.done, failed=len(summary.failed), wall_s=summary.wall_s)
+        return summary
+    finally:
+        st.unlock()
