@@ -118,9 +118,14 @@ class ArcLeg(Leg):
 
     def elements(self) -> Elements:
         n = self.n_elements
-        u = -1 + (2 * np.arange(1, n + 1) - 1) / n
+        return self.elements_at(-1 + (2 * np.arange(1, n + 1) - 1) / n)
+
+    def elements_at(self, u) -> Elements:
+        """Elements at arc parameters ``u`` in [-1 (tip), 1 (hip)], each carrying an equal
+        share of the arc (for quadrature-rule studies; :meth:`elements` uses midpoints)."""
+        u = np.asarray(u, dtype=float)
         pts, tan = self._points_tangents(u)
-        ds = np.full(n, self.arc_length / n)
+        ds = np.full(len(u), self.arc_length / len(u))
         return Elements(pts, tan, ds, ds * self.width)
 
     def outline(self, n: int = 200) -> np.ndarray:

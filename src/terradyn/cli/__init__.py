@@ -33,14 +33,18 @@ def _register_all() -> None:
             importlib.import_module(mod).register(app)
 
 
-@app.callback()
-def _root(version: bool = typer.Option(False, "--version", help="Print the version and exit.")):
-    """terradyn: forces on legs and feet in granular media."""
-    if version:
+def _version(value: bool):
+    if value:
         from .. import __version__
 
         typer.echo(__version__)
         raise typer.Exit()
+
+
+@app.callback()
+def _root(version: bool = typer.Option(False, "--version", callback=_version, is_eager=True,
+                                       help="Print the version and exit.")):
+    """terradyn: forces on legs and feet in granular media."""
 
 
 def err(msg: str) -> None:
@@ -51,25 +55,21 @@ def err(msg: str) -> None:
 
 
 def main(argv: list[str] | None = None) -> int:
-    import click
-
+    """Run the CLI; returns the exit code (0 ok, 2 bad input or usage, 130 interrupted)."""
     _register_all()
     try:
-        app(args=argv, standalone_mode=False)
+        app(args=argv, prog_name="terradyn")  # standalone: usage errors exit 2 with a message
+    except SystemExit as e:
+        return e.code if isinstance(e.code, int) else (0 if e.code is None else 1)
     except InputError as e:
         err(f"[bold red]error:[/] {e}")
         return 2
-    except click.exceptions.Exit as e:
-        return e.exit_code
-    except click.ClickException as e:
-        e.show()
-        return 2
-    except (click.exceptions.Abort, KeyboardInterrupt):
-        err("interrupted")
-        return 130
     except FileNotFoundError as e:
         err(f"[bold red]error:[/] file not found: {e.filename}")
         return 2
+    except KeyboardInterrupt:
+        err("interrupted")
+        return 130
     return 0
 
 
