@@ -1,0 +1,141 @@
+"""Streaming and batch assimilation of force samples into a surrogate's prediction.
+
+:class:`Assimilation` holds the posterior over the surrogate's coefficients at one operating
+condition. Feed it samples one at a time (:meth:`Assimilation.update` is the fast path;
+:meth:`Assimilation.feed` also returns the current posterior force series with bands), or a
+whole observation series (:func:`assimilate`). Observations may carry Fx, Fz or both, with NaN
+for a missing value; the motion coordinate (theta in deg or time in s) must match the
+surrogate's.
+"""
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import xarray as xr
+
+from ..errors import InputError, choice, positive
+from .filter import GaussianPosterior, ParticleFilter
+from .surrogate import Surrogate
+
+METHODS = ("pf", "exact")
+
+
+class Assimilation:
+    """Posterior of a surrogate's prediction at ``condition`` given streamed samples.
+
+    obs_std: observation noise std per component, N (a float for all, or a dict such as
+    {"Fz": 0.5}); method: "pf" (particle filter) or "exact" (Gaussian posterior);
+    prior_inflation multiplies the GP's coefficient std; the remaining keywords go to
+    :class:`ParticleFilter` (n_particles, resample, ess_threshold, jitter, rng, backend).
+    """
+
+    def __init__(self, surrogate: Surrogate, condition, obs_std: float | dict = 0.1, method: str = "pf",
+                 prior_inflation: float = 1.0, **pf_options):
+        self.surrogate = surrogate
+        X = surrogate.conditions_array(condition)
+        if len(X) != 1:
+            raise InputError("condition", "assimilation needs exactly one condition")
+        self.condition = {n: float(X[0, k]) for k, n in enumerate(surrogate.input_names_)}
+        self.method = choice("method", method, METHODS)
+        comps = surrogate.components_
+        if isinstance(obs_std, dict):
+            unknown = [c for c in obs_std if c not in comps]
+            if unknown:
+                raise InputError("obs-std", f"unknown component(s) {unknown}")
+            self.obs_std = {c: positive(f"obs-std {c}", v, "N") for c, v in obs_std.items()}
+        else:
+            s = positive("obs-std", obs_std, "N")
+            self.obs_std = {c: s for c in comps}
+        infl = positive("prior-inflation", prior_inflation)
+        mu, sd = surrogate.predict_coefficients(X)
+        self.prior_mean, self.prior_std = mu[0], sd[0] * infl
+        if self.method == "pf":
+            self.post = ParticleFilter(self.prior_mean, prior_std=self.prior_std, **pf_options)
+        else:
+            if pf_options:
+                raise InputError("method", f"options {sorted(pf_options)} apply only to method='pf'")
+            self.post = GaussianPosterior(self.prior_mean, np.diag(self.prior_std ** 2))
+        self._rows: dict[tuple[str, float], tuple[np.ndarray, float]] = {}
+        self.n_samples = 0
+
+    def _row(self, component: str, value: float):
+        # Observation rows are computed lazily and cached: a sensor usually revisits grid points.
+        key = (component, value)
+        r = self._rows.get(key)
+        if r is None:
+            H, off = self.surrogate.observation_rows(value, component)
+            r = (H[0], float(off[0]))
+            if len(self._rows) < 100_000:
+                self._rows[key] = r
+        return r
+
+    def update(self, coord_value: float, Fx: float | None = None, Fz: float | None = None,
+               torque: float | None = None) -> float:
+        """Assimilate one sample at motion coordinate ``coord_value`` (deg or s); None or NaN
+        components are missing. Returns the ESS (inf for the exact method, N when nothing was
+        observed)."""
+        ess = math.inf if self.method == "exact" else self.post.ess
+        for comp, y in (("Fx", Fx), ("Fz", Fz), ("torque", torque)):
+            if y is None or y != y:  # None or NaN: missing
+                continue
+            if comp not in self.obs_std:
+                raise InputError(comp, "this surrogate does not model it")
+            if not math.isfinite(y):
+                raise InputError(comp, f"observation must be finite, got {y}")
+            h, off = self._row(comp, float(coord_value))
+            ess = self.post.update(h, off, float(y), self.obs_std[comp])
+        self.n_samples += 1
+        return ess
+
+    def posterior(self) -> tuple[np.ndarray, np.ndarray]:
+        """Posterior coefficient mean (D,) and covariance (D, D)."""
+        return self.post.mean, self.post.cov
+
+    def prediction(self) -> xr.Dataset:
+        """The current posterior force series with Fx_std/Fz_std (N)."""
+        m, P = self.posterior()
+        mean, std = self.surrogate.forces_from_coefficients(m, P)
+        extra = {"assimilation": {"method": self.method, "samples": self.n_samples,
+                                  "obs_std_N": self.obs_std,
+                                  "particles": getattr(self.post, "n", None),
+                                  "resamples": getattr(self.post, "n_resamples", None)}}
+        return self.surrogate.series(mean, std, self.condition, f"dddas-{self.method}", extra)
+
+    def feed(self, coord_value: float, Fx: float | None = None, Fz: float | None = None) -> xr.Dataset:
+        """Assimilate one sample and return the updated posterior force series."""
+        self.update(coord_value, Fx, Fz)
+        return self.prediction()
+
+
+def observations_arrays(obs: xr.Dataset, coord: str) -> tuple[np.ndarray, dict[str, np.ndarray]]:
+    """Coordinate values (m,) and component arrays (m,) with NaN for missing, from a series-like
+    Dataset (Fx and/or Fz; the motion coordinate ``coord``)."""
+    if coord not in obs.coords and coord not in obs:
+        raise InputError("observations", f"need the surrogate's motion coordinate {coord!r}")
+    comps = {c: np.asarray(obs[c].values, float) for c in ("Fx", "Fz", "torque") if c in obs}
+    if not comps:
+        raise InputError("observations", "need an Fx and/or Fz variable")
+    v = np.asarray(obs[coord].values, float)
+    if not np.isfinite(v).all():
+        raise InputError("observations", f"{coord} contains NaN or inf")
+    for c, a in comps.items():
+        if np.isinf(a).any():
+            raise InputError("observations", f"{c} contains inf")
+    return v, comps
+
+
+def assimilate(surrogate: Surrogate, condition, observations: xr.Dataset, obs_std: float | dict = 0.1,
+               method: str = "pf", **options) -> xr.Dataset:
+    """Batch form: assimilate every sample of ``observations`` in order and return the
+    posterior force series (with Fx_std, Fz_std); attrs ``ess_min`` and
+    ``samples_assimilated``. ``options`` go to :class:`Assimilation`."""
+    a = Assimilation(surrogate, condition, obs_std, method, **options)
+    v, comps = observations_arrays(observations, surrogate.coord_)
+    ess = np.empty(len(v))
+    for i in range(len(v)):
+        ess[i] = a.update(v[i], *(float(comps[c][i]) if c in comps else None for c in ("Fx", "Fz", "torque")))
+    out = a.prediction()
+    out.attrs["ess_min"] = float(np.min(ess)) if len(ess) else float("nan")
+    out.attrs["samples_assimilated"] = int(np.sum(np.any([np.isfinite(x) for x in comps.values()], 0)))
+    return out
