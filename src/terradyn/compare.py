@@ -46,8 +46,8 @@ def peak_difference(a: xr.Dataset, b: xr.Dataset, components=COMPONENTS) -> dict
         pa, pb = float(a[k].max()), float(b[k].max())
         out[k] = {"peak_a": pa, "peak_b": pb,
                   "rel_diff": abs(pb - pa) / abs(pa) if pa != 0 else float("inf"),
-                  f"at_a_{c}": float(a[c][int(a[k].argmax())]),
-                  f"at_b_{c}": float(b[c][int(b[k].argmax())])}
+                  f"at_a_{c}": float(a[c].values[int(np.argmax(a[k].values))]),
+                  f"at_b_{c}": float(b[c].values[int(np.argmax(b[k].values))])}
     return out
 
 

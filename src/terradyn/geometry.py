@@ -118,7 +118,7 @@ class ArcLeg(Leg):
 
     def elements(self) -> Elements:
         n = self.n_elements
-        return self.elements_at(-1 + (2 * np.arange(1, n + 1) - 1) / n)
+        return self.elements_at(1 - (2 * np.arange(1, n + 1) - 1) / n)  # hip to tip
 
     def elements_at(self, u) -> Elements:
         """Elements at arc parameters ``u`` in [-1 (tip), 1 (hip)], each carrying an equal
