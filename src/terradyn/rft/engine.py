@@ -204,7 +204,11 @@ def net_forces(leg: Leg | Elements, traj: Trajectory, model: StressModel, surfac
     :class:`FourierFit`, NumPy for any other stress model."""
     el = leg.elements() if isinstance(leg, Leg) else leg
     if isinstance(model, FourierFit):
-        out = _net_fourier(PackedElements.of([el]), traj, model, surface)[0]
+        # Elements are immutable: pack once and keep the packed arrays with them.
+        packed = el.__dict__.get("_packed")
+        if packed is None:
+            packed = el.__dict__["_packed"] = PackedElements.of([el])
+        out = _net_fourier(packed, traj, model, surface)[0]
         return out[:, 0], out[:, 1], out[:, 2]
     return _net_numpy(el, traj, model, surface)
 
