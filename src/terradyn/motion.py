@@ -53,6 +53,15 @@ class Trajectory:
                 np.cos(2 * a), np.sin(2 * a), self.angular_velocity))
         return cache[key]
 
+    def kernel_arrays3(self, dtype=np.float64) -> tuple[np.ndarray, np.ndarray]:
+        """(cos 3a, sin 3a) as contiguous arrays of ``dtype`` (cached)."""
+        cache = self.__dict__.setdefault("_kernel_cache", {})
+        key = "3" + np.dtype(dtype).str
+        if key not in cache:
+            cache[key] = (np.ascontiguousarray(np.cos(3 * self.angle), dtype=dtype),
+                          np.ascontiguousarray(np.sin(3 * self.angle), dtype=dtype))
+        return cache[key]
+
 
 @dataclass(frozen=True)
 class Rotation:

@@ -162,6 +162,49 @@ def _fourier_kernel(sx, sz, c2b, s2b, area, inv_s, hx, hz, vhx, vhz, ang_c, ang_
         out[d, j, 2] = tq_sum
 
 
+@numba.njit(parallel=True, fastmath=True, cache=True, error_model="numpy")
+def _fourier_rotation_kernel(sx, sz, area, H, hz, c1, s1, c2, s2, c3, s3, w, a00, surface,
+                             out):  # pragma: no cover - compiled
+    """Fourier fit for a rotation about a hip at rest (any angle history, any omega(t)).
+
+    For a hip at rest an element's direction of motion turns with the body, so gamma = phi +
+    theta, 2 beta = 2 beta_body - 2 theta, and each of the fit's terms is a harmonic of theta
+    of order 1, 2 or 3 with per-element amplitudes H (12, D, n) precomputed from the body
+    geometry and the coefficients (see :meth:`PackedElements.harmonics`). Per element and
+    step this leaves ~30 flops: no square root, division or trigonometric call.
+    """
+    D, n = sx.shape
+    S = hz.shape[0]
+    zero = sx.dtype.type(0.0)
+    one = sx.dtype.type(1.0)
+    for k in numba.prange(D * S):
+        d = k // S
+        j = k - d * S
+        C1, S1, C2, S2, C3, S3, wj = c1[j], s1[j], c2[j], s2[j], c3[j], s3[j], w[j]
+        sgn = zero if wj == zero else (one if wj > zero else -one)
+        depth0 = surface - hz[j]
+        sxd, szd, ad = sx[d], sz[d], area[d]
+        z2c, z2s, z1c, z1s, z3c, z3s = H[0, d], H[1, d], H[2, d], H[3, d], H[4, d], H[5, d]
+        x2c, x2s, x1c, x1s, x3c, x3s = H[6, d], H[7, d], H[8, d], H[9, d], H[10, d], H[11, d]
+        fx_sum = zero
+        fz_sum = zero
+        tq_sum = zero
+        for i in range(n):
+            rx = C1 * sxd[i] + S1 * szd[i]
+            rz = -S1 * sxd[i] + C1 * szd[i]
+            az = a00 + z2c[i] * C2 + z2s[i] * S2 + sgn * (z1c[i] * C1 + z1s[i] * S1
+                                                           + z3c[i] * C3 + z3s[i] * S3)
+            ax = x2c[i] * C2 + x2s[i] * S2 + sgn * (x1c[i] * C1 + x1s[i] * S1
+                                                     + x3c[i] * C3 + x3s[i] * S3)
+            load = max(depth0 - rz, zero) * ad[i] * sgn * sgn
+            fx_sum -= ax * load
+            fz_sum += az * load
+            tq_sum += (rx * az + rz * ax) * load
+        out[d, j, 0] = fx_sum
+        out[d, j, 1] = fz_sum
+        out[d, j, 2] = tq_sum
+
+
 @dataclass(frozen=True, eq=False)
 class PackedElements:
     """Element sets of D designs padded to (D, n_max) arrays for the compiled kernel."""
@@ -189,13 +232,40 @@ class PackedElements:
             a["area"][d, :m] = np.where(r > 0, e.areas, 0.0)  # an element on the axis never moves
         return cls(**{k: np.ascontiguousarray(v, dtype=dtype) for k, v in a.items()})
 
+    def harmonics(self, fit: FourierFit) -> np.ndarray:
+        """Per-element amplitudes (12, D, n) of the fit's harmonics in theta for a rotation
+        about a hip at rest (cached per fit). Order: alpha_z cos2, sin2, cos1, sin1, cos3, sin3,
+        then the same for alpha_x; the order-1 and -3 terms flip sign with omega."""
+        cache = self.__dict__.setdefault("_harmonics", {})
+        if fit not in cache:
+            A00, A10, B11, B01, Bm11, C11, C01, Cm11, D10 = fit.as_array()
+            sx, sz = self.sx.astype(float), self.sz.astype(float)
+            phi = np.arctan2(sx, sz)  # body direction of motion: gamma = phi + theta
+            P2 = np.arctan2(self.s2b.astype(float), self.c2b.astype(float))  # 2 beta_body
+            Q1, Q3 = P2 + phi, phi - P2
+            H = np.stack([
+                A10 * np.cos(P2), A10 * np.sin(P2),
+                B11 * np.sin(Q1) + B01 * np.sin(phi), -B11 * np.cos(Q1) + B01 * np.cos(phi),
+                Bm11 * np.sin(Q3), Bm11 * np.cos(Q3),
+                D10 * np.sin(P2), -D10 * np.cos(P2),
+                C11 * np.cos(Q1) + C01 * np.cos(phi), C11 * np.sin(Q1) - C01 * np.sin(phi),
+                Cm11 * np.cos(Q3), -Cm11 * np.sin(Q3)])
+            cache[fit] = np.ascontiguousarray(H, dtype=self.sx.dtype)
+        return cache[fit]
+
 
 def _net_fourier(packed: PackedElements, traj: Trajectory, fit: FourierFit, surface: float,
                  ) -> np.ndarray:
     dt = packed.sx.dtype
     out = np.empty((packed.sx.shape[0], len(traj), 3), dtype=dt)
-    _fourier_kernel(packed.sx, packed.sz, packed.c2b, packed.s2b, packed.area, packed.inv_s,
-                    *traj.kernel_arrays(dt), fit.as_array(dt), dt.type(surface), out)
+    hx, hz, vhx, vhz, c1, s1, c2, s2, w = traj.kernel_arrays(dt)
+    if not vhx.any() and not vhz.any():  # rotation about a hip at rest: harmonic form
+        c3, s3 = traj.kernel_arrays3(dt)
+        _fourier_rotation_kernel(packed.sx, packed.sz, packed.area, packed.harmonics(fit), hz,
+                                 c1, s1, c2, s2, c3, s3, w, dt.type(fit.A00), dt.type(surface), out)
+    else:
+        _fourier_kernel(packed.sx, packed.sz, packed.c2b, packed.s2b, packed.area, packed.inv_s,
+                        hx, hz, vhx, vhz, c1, s1, c2, s2, w, fit.as_array(dt), dt.type(surface), out)
     return out
 
 
