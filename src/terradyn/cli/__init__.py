@@ -51,7 +51,7 @@ def err(msg: str) -> None:
     """A message for the user, on stderr."""
     from rich.console import Console
 
-    Console(stderr=True, highlight=False).print(msg)
+    Console(stderr=True, highlight=False, soft_wrap=True).print(msg)
 
 
 def main(argv: list[str] | None = None) -> int:

@@ -2,6 +2,7 @@
 from __future__ import annotations
 
 from pathlib import Path
+from typing import Optional
 
 import typer
 
@@ -43,22 +44,63 @@ def all_(out: Path = typer.Option(Path("results"), "--out", "-o", help="Output f
     typer.echo(str(out))
 
 
-def _one(name: str, doc: str):
-    def cmd(out: Path = typer.Option(Path("results"), "--out", "-o", help="Output folder.")):
-        from .. import studies
-
-        studies.STUDIES[name](out)
-        typer.echo(str(out))
-
-    cmd.__doc__ = doc
-    study_app.command(name)(cmd)
+OUT = typer.Option(Path("results"), "--out", "-o", help="Output folder.")
+MEDIUM = typer.Option("3 mm glass CP", help="Medium (see `terradyn rft --help`).")
+ALPHA = typer.Option("table", help="Stress coefficients: fit, generic or table.")
 
 
-_one("interp", "Hold-out comparison of the five interpolators and the fit (all media).")
-_one("legs", "Rotating-leg forces for the flat, C and reverse C legs.")
-_one("frames", "Frames of each leg with element force arrows.")
-_one("foot", "Human-sized foot, lengths 25-33 cm.")
-_one("experiment", "RFT vs the measured curves of Li 2013 Fig. S12.")
+@study_app.command("interp")
+def interp(out: Path = OUT, map_medium: str = typer.Option("3 mm glass CP", help="Medium of the alpha maps.")):
+    """Hold-out comparison of the five interpolators and the fit (all media)."""
+    from .. import studies
+
+    studies.interp_study(out, map_medium)
+    typer.echo(str(out))
+
+
+@study_app.command("legs")
+def legs(out: Path = OUT, medium: str = MEDIUM, alpha: str = ALPHA,
+         interp: str = typer.Option("linear", help="Interpolator for --alpha table."),
+         zeta: Optional[float] = typer.Option(None, help="zeta for --alpha generic."),
+         n_theta: int = typer.Option(271, help="Number of angles."),
+         elements: int = typer.Option(100, help="Elements per leg.")):
+    """Rotating-leg forces for the flat, C and reverse C legs, each alone and together."""
+    from .. import studies
+
+    studies.legs_study(out, medium, alpha, interp, zeta, n_theta, elements)
+    typer.echo(str(out))
+
+
+@study_app.command("frames")
+def frames(out: Path = OUT, medium: str = MEDIUM, alpha: str = ALPHA,
+           theta_deg: list[float] = typer.Option([-90, -60, -30, 0, 30, 60], help="Angles to show (repeat the option).")):
+    """Frames of each leg rotating through the bed with element force arrows."""
+    from .. import studies
+
+    studies.frames_study(out, medium, alpha, tuple(theta_deg))
+    typer.echo(str(out))
+
+
+@study_app.command("foot")
+def foot(out: Path = OUT, medium: str = typer.Option("poppy LP", help="Medium."),
+         alpha: str = typer.Option("fit", help="Stress coefficients: fit, generic or table."),
+         length_cm: list[float] = typer.Option(list(range(25, 34)), help="Foot lengths, cm (repeat the option)."),
+         max_deg: float = typer.Option(3.0, help="Largest rotation, deg."),
+         width_cm: float = typer.Option(8.5, help="Foot width, cm.")):
+    """Human-sized foot: forces against rotation for several lengths."""
+    from .. import studies
+
+    studies.foot_study(out, tuple(length_cm), medium, alpha, max_deg, 61, width_cm)
+    typer.echo(str(out))
+
+
+@study_app.command("experiment")
+def experiment(out: Path = OUT):
+    """RFT (generic x fitted zeta) vs the measured curves of Li 2013 Fig. S12."""
+    from .. import studies
+
+    studies.experiment_study(out)
+    typer.echo(str(out))
 
 
 def register(app: typer.Typer) -> None:

@@ -9,6 +9,13 @@ from typing import Optional
 import typer
 
 
+def err(msg: str) -> None:
+    """A message on stderr, never wrapped (paths and summaries stay greppable)."""
+    from rich.console import Console
+
+    Console(stderr=True, highlight=False, soft_wrap=True).print(msg)
+
+
 def register(app: typer.Typer) -> None:
     sw = typer.Typer(name="sweep", no_args_is_help=True,
                      help="Sweeps of simulations from a TOML spec: local pool or Dask, resumable store.")
@@ -18,7 +25,6 @@ def register(app: typer.Typer) -> None:
              as_json: bool = typer.Option(False, "--json", help="Full resolved cases as JSON.")):
         """Show the cases of SPEC without running them (CSV on stdout: case_id + varied values)."""
         from ..sweep import load
-        from . import err
 
         s = load(spec)
         if as_json:
@@ -41,7 +47,6 @@ def register(app: typer.Typer) -> None:
             quiet: bool = typer.Option(False, "--quiet", "-q", help="No progress bar.")):
         """Run the unfinished cases of SPEC into the store (rerun to resume)."""
         from ..sweep import collect, load, run as run_sweep
-        from . import err
 
         s = load(spec)
         cb, bar = None, None
@@ -99,7 +104,6 @@ def register(app: typer.Typer) -> None:
                     partial: bool = typer.Option(False, "--partial", help="Collect even if some cases are not done.")):
         """Stack the finished cases into one NetCDF with a `case` dimension (the training tensor)."""
         from ..sweep import collect
-        from . import err
 
         ds = collect(store, out, partial=partial)
         err(f"wrote {out}: {ds.sizes['case']} cases x {dict((k, v) for k, v in ds.sizes.items() if k != 'case')}")
