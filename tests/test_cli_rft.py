@@ -68,7 +68,7 @@ def test_help_lists_media_and_legs():
 
 def test_study_all_quick_writes_figures_and_data(tmp_path):
     assert main(["study", "all", "--quick", "--out", str(tmp_path)]) == 0
-    for f in ("interp_holdout.nc", "alpha_maps.png", "rft_legs.nc", "rft_legs.png", "frames_c.png",
+    for f in ("interp_holdout.nc", "alpha_maps.png", "rft_legs.nc", "rft_legs.png", "frames_c.png", "frames.nc",
               "rft_foot.nc", "rft_foot.png", "rft_vs_li2013_s12.csv", "summary.json"):
         assert (tmp_path / f).exists(), f
     legs = io.read(tmp_path / "rft_legs.nc")

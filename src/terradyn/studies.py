@@ -12,6 +12,7 @@ from pathlib import Path
 
 import numpy as np
 import pandas as pd
+import xarray as xr
 
 from . import io, plots
 from .geometry import foot, make_leg
@@ -75,18 +76,30 @@ def legs_study(out, medium: str = "3 mm glass CP", alpha: str = "table", interp:
 
 def frames_study(out, medium: str = "3 mm glass CP", alpha: str = "table",
                  thetas_deg=(-90, -60, -30, 0, 30, 60), n_elements: int = 24) -> dict:
-    """Snapshots of each leg at several angles with element force arrows."""
+    """Snapshots of each leg at several angles with element force arrows; the element
+    positions and forces go to ``frames.nc`` (dims leg, theta, element)."""
     out = _out(out)
     model = stress_model(medium, alpha)
     th = np.asarray(thetas_deg, float) * DEG
     h = 2.0 * CM
+    z0 = np.zeros_like(th)
+    traj = Trajectory(z0, z0, z0 + h, z0, z0, th, z0 + 0.2)
+    data = {k: [] for k in ("x", "z", "fx", "fz")}
     for leg_name in LEGS:
         leg = make_leg(leg_name, n=n_elements)
-        z0 = np.zeros_like(th)
-        traj = Trajectory(z0, z0, z0 + h, z0, z0, th, z0 + 0.2)
         fx, fz, st = element_forces(leg.elements(), traj, model)
+        for k, v in (("x", st.x), ("z", st.z), ("fx", fx), ("fz", fz)):
+            data[k].append(v)
         plots.frames(leg, np.degrees(th), fx, fz, st.x, st.z, out / f"frames_{leg_name}.png",
                      title=f"{leg_name} leg in {medium}: element forces", hip_height=h)
+    units = {"x": "m", "z": "m", "fx": "N", "fz": "N"}
+    ds = xr.Dataset({k: (("leg", "theta", "element"), np.array(v), {"units": units[k]})
+                     for k, v in data.items()},
+                    coords={"leg": list(LEGS), "theta": ("theta", np.degrees(th), {"units": "deg"}),
+                            "element": np.arange(n_elements)},
+                    attrs={"medium": medium, "alpha": alpha, "hip_height_m": h,
+                           "description": "element centres (world frame) and element forces"})
+    io.write(ds, out / "frames.nc")
     return {"thetas_deg": list(map(float, thetas_deg))}
 
 
