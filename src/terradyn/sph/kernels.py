@@ -1,0 +1,455 @@
+"""Compiled SPH kernels (Numba, multi-threaded on the CPU).
+
+Physics (2D plane strain, per unit depth; tension-positive stress, z up):
+
+* Kernel: Wendland C2 in 2D, W(r, h) = 7 / (4 pi h^2) (1 - q/2)^4 (2 q + 1), q = r/h, support
+  2h (Wendland 1995; free of the pairing instability: Dehnen & Aly 2012, MNRAS 425:1068).
+* Continuity: d rho_i/dt = sum_j m_j (v_i - v_j) . grad_i W_ij.
+* Momentum (Bui et al. 2008, eq. 38):
+  dv_i/dt = sum_j m_j (sigma_i / rho_i^2 + sigma_j / rho_j^2 - Pi_ij I) . grad_i W_ij + g,
+  Monaghan artificial viscosity Pi_ij = (-a c mu + b mu^2) / rho_ij, mu = h v_ij.x_ij /
+  (r^2 + 0.01 h^2) when v_ij.x_ij < 0 (Monaghan 1992).
+* Time stepping (two passes per step, symplectic): the velocity gradient from v^n updates
+  the stress to sigma^{n+1}; the accelerations from sigma^{n+1} update v and then x.
+* Velocity gradient: L_i = sum_j (m_j / rho_j) (v_j - v_i) (x) grad_i W_ij; strain rate and
+  spin are its symmetric and antisymmetric parts.
+* Constitutive law: elastic-perfectly plastic Drucker-Prager, Jaumann stress rate, elastic
+  predictor then Bui et al. (2008) sec. 3.3 return: tension cut-off (shift of the mean stress
+  back to the apex) and stress scaling of the deviator onto the yield surface. The flow is
+  non-dilatant (psi = 0), the choice Bui et al. found to match their experiment.
+* Boundaries: dummy particles (walls, rigid leg) whose stress and velocity are extrapolated
+  from the granular particles around them (Adami, Hu & Adams 2012, J. Comput. Phys. 231:7057,
+  generalised from pressure to the stress tensor), with the gravity / wall-acceleration term.
+  Leg particles belong to one side of the (thin) leg and only see material on that side.
+
+Particle kinds: 0 granular, 1 fixed wall, 2 leg (moving rigid body).
+"""
+from __future__ import annotations
+
+import math
+
+import numba
+import numpy as np
+from numba import prange
+
+SOIL, WALL, LEG = 0, 1, 2
+_W2D = 7.0 / (4.0 * math.pi)
+
+
+@numba.njit(inline="always", fastmath=True)
+def wendland_dw(r, h):
+    """(1/r) dW/dr of the 2D Wendland C2 kernel: -35 / (4 pi h^4) (1 - q/2)^3 (0 outside)."""
+    q = r / h
+    if q >= 2.0:
+        return 0.0
+    t = 1.0 - 0.5 * q
+    return -5.0 * _W2D / (h * h * h * h) * t * t * t
+
+
+@numba.njit(inline="always", fastmath=True)
+def wendland_w(r, h):
+    q = r / h
+    if q >= 2.0:
+        return 0.0
+    t = 1.0 - 0.5 * q
+    return _W2D / (h * h) * t * t * t * t * (2.0 * q + 1.0)
+
+
+@numba.njit(cache=True)
+def bin_particles(x, z, xmin, zmin, inv_cell, ncx, ncz, cell_start, cell_index):
+    """Counting sort of particles into square cells (side = kernel support).
+
+    cell_start: (ncx*ncz + 1,) int64 offsets; cell_index: (N,) particle ids sorted by cell.
+    Particles outside the grid are clamped into the edge cells (still correct: every pair is
+    tested by distance)."""
+    n = x.shape[0]
+    nc = ncx * ncz
+    cell_of = np.empty(n, np.int64)
+    for k in range(nc + 1):
+        cell_start[k] = 0
+    for i in range(n):
+        cx = int((x[i] - xmin) * inv_cell)
+        cz = int((z[i] - zmin) * inv_cell)
+        cx = min(max(cx, 0), ncx - 1)
+        cz = min(max(cz, 0), ncz - 1)
+        c = cz * ncx + cx
+        cell_of[i] = c
+        cell_start[c + 1] += 1
+    for k in range(nc):
+        cell_start[k + 1] += cell_start[k]
+    fill = cell_start[:-1].copy()
+    for i in range(n):
+        c = cell_of[i]
+        cell_index[fill[c]] = i
+        fill[c] += 1
+
+
+@numba.njit(parallel=True, fastmath=True, cache=True)
+def boundary_state(x, z, vx, vz, rho, mass, kind, nox, noz, dcl, sxx, szz, sxz, syy,
+                   gvx, gvz, bidx, acc_x, acc_z, gx, gz, h,
+                   xmin, zmin, inv_cell, ncx, ncz, cell_start, cell_index, noslip):
+    """Stress and ghost velocity of every boundary particle (ids ``bidx``) from the granular
+    particles around it (Shepard average + hydrostatic term). acc_x/acc_z: (N,) wall
+    accelerations. ``noslip``: ghost velocity 2 v_w - <v>; else <v> (free slip)."""
+    for kk in prange(bidx.shape[0]):
+        w = bidx[kk]
+        xw = x[w]
+        zw = z[w]
+        cx = min(max(int((xw - xmin) * inv_cell), 0), ncx - 1)
+        cz = min(max(int((zw - zmin) * inv_cell), 0), ncz - 1)
+        ssum = 0.0
+        axx = 0.0
+        azz = 0.0
+        axz = 0.0
+        ayy = 0.0
+        avx = 0.0
+        avz = 0.0
+        hyd = 0.0
+        isleg = kind[w] == LEG
+        ex = gx - acc_x[w]
+        ez = gz - acc_z[w]
+        for dz in range(-1, 2):
+            iz = cz + dz
+            if iz < 0 or iz >= ncz:
+                continue
+            for dxc in range(-1, 2):
+                ix = cx + dxc
+                if ix < 0 or ix >= ncx:
+                    continue
+                c = iz * ncx + ix
+                for p in range(cell_start[c], cell_start[c + 1]):
+                    f = cell_index[p]
+                    if kind[f] != SOIL:
+                        continue
+                    rx = xw - x[f]
+                    rz = zw - z[f]
+                    if isleg and (-rx * nox[w] - rz * noz[w] + dcl[w]) <= 0.0:
+                        continue
+                    r = math.sqrt(rx * rx + rz * rz)
+                    wgt = wendland_w(r, h)
+                    if wgt == 0.0:
+                        continue
+                    ssum += wgt
+                    axx += sxx[f] * wgt
+                    azz += szz[f] * wgt
+                    axz += sxz[f] * wgt
+                    ayy += syy[f] * wgt
+                    avx += vx[f] * wgt
+                    avz += vz[f] * wgt
+                    hyd += rho[f] * (ex * rx + ez * rz) * wgt
+        if ssum > 0.0:
+            inv = 1.0 / ssum
+            # p_w = <p> + rho (g - a_w).(x_w - x_f) (Adami 2012); sigma = -p I, tension
+            # positive: a wall below the material carries more compression.
+            p_add = -hyd * inv
+            sxx[w] = axx * inv + p_add
+            szz[w] = azz * inv + p_add
+            syy[w] = ayy * inv + p_add
+            sxz[w] = axz * inv
+            if noslip:
+                gvx[w] = 2.0 * vx[w] - avx * inv
+                gvz[w] = 2.0 * vz[w] - avz * inv
+            else:
+                gvx[w] = avx * inv
+                gvz[w] = avz * inv
+        else:
+            sxx[w] = 0.0
+            szz[w] = 0.0
+            syy[w] = 0.0
+            sxz[w] = 0.0
+            gvx[w] = vx[w]
+            gvz[w] = vz[w]
+
+
+@numba.njit(parallel=True, fastmath=True, cache=True)
+def gather(cell_index, x, z, vx, vz, gvx, gvz, rho, mass, kind, nox, noz, dcl, sxx, szz, sxz,
+           out_f, out_k):
+    """Copy what the pair loop reads into cell order (contiguous neighbour ranges).
+
+    out_f: (11, N) rows x, z, v_x, v_z (ghost velocity for boundary particles), sigma/rho^2
+    (xx, zz, xz), volume m/rho, rho, nox, noz; out_k: (2, N) float rows kind, dcl."""
+    for k in prange(cell_index.shape[0]):
+        i = cell_index[k]
+        r = rho[i]
+        inv2 = 1.0 / (r * r)
+        out_f[0, k] = x[i]
+        out_f[1, k] = z[i]
+        if kind[i] == SOIL:
+            out_f[2, k] = vx[i]
+            out_f[3, k] = vz[i]
+        else:
+            out_f[2, k] = gvx[i]
+            out_f[3, k] = gvz[i]
+        out_f[4, k] = sxx[i] * inv2
+        out_f[5, k] = szz[i] * inv2
+        out_f[6, k] = sxz[i] * inv2
+        out_f[7, k] = mass[i] / r
+        out_f[8, k] = r
+        out_f[9, k] = nox[i]
+        out_f[10, k] = noz[i]
+        out_k[0, k] = kind[i]
+        out_k[1, k] = dcl[i]
+
+
+@numba.njit(parallel=True, fastmath=True, cache=True)
+def velocity_gradient(srt, srtk, cell_index, h, xmin, zmin, inv_cell, ncx, ncz, cell_start,
+                      drho, lxx, lxz, lzx, lzz):
+    """First pass (velocities only): d rho/dt and the velocity gradient L of every granular
+    particle (lxx = dvx/dx, lxz = dvx/dz, ...). Reads the cell-ordered copies made by
+    :func:`gather`; writes by particle id."""
+    h2 = h * h
+    sup2 = 4.0 * h2
+    dwc = -5.0 * _W2D / (h2 * h2)
+    inv_h = 1.0 / h
+    X = srt[0]
+    Z = srt[1]
+    VX = srt[2]
+    VZ = srt[3]
+    VOL = srt[7]
+    RHO = srt[8]
+    NOX = srt[9]
+    NOZ = srt[10]
+    KND = srtk[0]
+    DCL = srtk[1]
+    for k in prange(cell_index.shape[0]):
+        if KND[k] != SOIL:
+            continue
+        i = cell_index[k]
+        xi = X[k]
+        zi = Z[k]
+        vxi = VX[k]
+        vzi = VZ[k]
+        cx = min(max(int((xi - xmin) * inv_cell), 0), ncx - 1)
+        cz = min(max(int((zi - zmin) * inv_cell), 0), ncz - 1)
+        dr = 0.0
+        gxx = 0.0
+        gxz = 0.0
+        gzx = 0.0
+        gzz = 0.0
+        for dz in range(-1, 2):
+            iz = cz + dz
+            if iz < 0 or iz >= ncz:
+                continue
+            c0x = max(cx - 1, 0)
+            c1x = min(cx + 1, ncx - 1)
+            for j in range(cell_start[iz * ncx + c0x], cell_start[iz * ncx + c1x + 1]):
+                rx = xi - X[j]
+                rz = zi - Z[j]
+                r2 = rx * rx + rz * rz
+                if r2 >= sup2:
+                    continue
+                if KND[j] == LEG and (rx * NOX[j] + rz * NOZ[j] + DCL[j]) <= 0.0:
+                    continue
+                t = 1.0 - 0.5 * math.sqrt(r2) * inv_h
+                fdw = dwc * t * t * t
+                gwx = fdw * rx
+                gwz = fdw * rz
+                vxij = vxi - VX[j]
+                vzij = vzi - VZ[j]
+                volj = VOL[j]
+                dr += volj * RHO[j] * (vxij * gwx + vzij * gwz)
+                gxx -= volj * vxij * gwx
+                gxz -= volj * vxij * gwz
+                gzx -= volj * vzij * gwx
+                gzz -= volj * vzij * gwz
+        drho[i] = dr
+        lxx[i] = gxx
+        lxz[i] = gxz
+        lzx[i] = gzx
+        lzz[i] = gzz
+
+
+@numba.njit(parallel=True, fastmath=True, cache=True)
+def accelerations(srt, srtk, cell_index, mass, h, c0, av_alpha, av_beta, gx, gz, hip_x, hip_z,
+                  xmin, zmin, inv_cell, ncx, ncz, cell_start, ax, az, fleg):
+    """Second pass (stresses): acceleration of every granular particle and the force it exerts
+    on the leg (fleg[i] = (Fx, Fz, torque about (hip_x, hip_z)), per unit depth)."""
+    h2 = h * h
+    sup2 = 4.0 * h2
+    dwc = -5.0 * _W2D / (h2 * h2)
+    inv_h = 1.0 / h
+    X = srt[0]
+    Z = srt[1]
+    VX = srt[2]
+    VZ = srt[3]
+    PXX = srt[4]
+    PZZ = srt[5]
+    PXZ = srt[6]
+    VOL = srt[7]
+    RHO = srt[8]
+    NOX = srt[9]
+    NOZ = srt[10]
+    KND = srtk[0]
+    DCL = srtk[1]
+    for k in prange(cell_index.shape[0]):
+        if KND[k] != SOIL:
+            continue
+        i = cell_index[k]
+        xi = X[k]
+        zi = Z[k]
+        vxi = VX[k]
+        vzi = VZ[k]
+        rhoi = RHO[k]
+        pxx = PXX[k]
+        pzz = PZZ[k]
+        pxz = PXZ[k]
+        cx = min(max(int((xi - xmin) * inv_cell), 0), ncx - 1)
+        cz = min(max(int((zi - zmin) * inv_cell), 0), ncz - 1)
+        a_x = 0.0
+        a_z = 0.0
+        fx = 0.0
+        fz = 0.0
+        tq = 0.0
+        for dz in range(-1, 2):
+            iz = cz + dz
+            if iz < 0 or iz >= ncz:
+                continue
+            c0x = max(cx - 1, 0)
+            c1x = min(cx + 1, ncx - 1)
+            # the three cells of a row are contiguous in cell order
+            for j in range(cell_start[iz * ncx + c0x], cell_start[iz * ncx + c1x + 1]):
+                rx = xi - X[j]
+                rz = zi - Z[j]
+                r2 = rx * rx + rz * rz
+                if r2 >= sup2:
+                    continue
+                kj = KND[j]
+                if kj == LEG and (rx * NOX[j] + rz * NOZ[j] + DCL[j]) <= 0.0:
+                    continue  # material on the other side of the thin leg
+                t = 1.0 - 0.5 * math.sqrt(r2) * inv_h
+                fdw = dwc * t * t * t
+                gwx = fdw * rx
+                gwz = fdw * rz
+                vdotr = (vxi - VX[j]) * rx + (vzi - VZ[j]) * rz
+                rhoj = RHO[j]
+                mj = VOL[j] * rhoj
+                pi_ij = 0.0
+                if vdotr < 0.0:
+                    mu = h * vdotr / (r2 + 0.01 * h2)
+                    pi_ij = (-av_alpha * c0 * mu + av_beta * mu * mu) / (0.5 * (rhoi + rhoj))
+                txx = pxx + PXX[j] - pi_ij
+                tzz = pzz + PZZ[j] - pi_ij
+                txz = pxz + PXZ[j]
+                pax = mj * (txx * gwx + txz * gwz)
+                paz = mj * (txz * gwx + tzz * gwz)
+                a_x += pax
+                a_z += paz
+                if kj == LEG:
+                    # reaction on the leg, applied at the leg particle
+                    mi = mass[i]
+                    fx -= mi * pax
+                    fz -= mi * paz
+                    tq -= mi * ((X[j] - hip_x) * paz - (Z[j] - hip_z) * pax)
+        ax[i] = a_x + gx
+        az[i] = a_z + gz
+        fleg[i, 0] = fx
+        fleg[i, 1] = fz
+        fleg[i, 2] = tq
+
+
+@numba.njit(parallel=True, fastmath=True, cache=True)
+def update_stress(rho, sxx, szz, sxz, syy, sidx, drho, lxx, lxz, lzx, lzz, dt, shear_mod,
+                  bulk_mod, alpha_phi, k_c):
+    """Density and Drucker-Prager stress of the granular particles ``sidx`` over one step:
+    Jaumann rate + Hooke's law (plane strain), then the Bui et al. (2008) return: tension
+    cut-off and stress scaling onto the yield surface (non-dilatant flow)."""
+    for kk in prange(sidx.shape[0]):
+        i = sidx[kk]
+        rho[i] += dt * drho[i]
+        exx = lxx[i]
+        ezz = lzz[i]
+        exz = 0.5 * (lxz[i] + lzx[i])
+        wxz = 0.5 * (lxz[i] - lzx[i])
+        ev = exx + ezz
+        s_xx = sxx[i]
+        s_zz = szz[i]
+        s_xz = sxz[i]
+        s_yy = syy[i]
+        third = ev / 3.0
+        d_xx = 2.0 * s_xz * wxz + 2.0 * shear_mod * (exx - third) + bulk_mod * ev
+        d_zz = -2.0 * s_xz * wxz + 2.0 * shear_mod * (ezz - third) + bulk_mod * ev
+        d_yy = 2.0 * shear_mod * (-third) + bulk_mod * ev
+        d_xz = wxz * (s_zz - s_xx) + 2.0 * shear_mod * exz
+        s_xx += dt * d_xx
+        s_zz += dt * d_zz
+        s_yy += dt * d_yy
+        s_xz += dt * d_xz
+        # tension cut-off: -alpha_phi I1 + k_c >= 0
+        i1 = s_xx + s_zz + s_yy
+        if -alpha_phi * i1 + k_c < 0.0:
+            shift = (i1 - k_c / alpha_phi) / 3.0
+            s_xx -= shift
+            s_zz -= shift
+            s_yy -= shift
+            i1 = k_c / alpha_phi
+        # stress scaling onto the yield surface f = sqrt(J2) + alpha_phi I1 - k_c = 0
+        m = i1 / 3.0
+        dxx = s_xx - m
+        dzz = s_zz - m
+        dyy = s_yy - m
+        j2 = 0.5 * (dxx * dxx + dzz * dzz + dyy * dyy) + s_xz * s_xz
+        lim = -alpha_phi * i1 + k_c
+        if j2 > lim * lim and j2 > 0.0:
+            rr = lim / math.sqrt(j2)
+            dxx *= rr
+            dzz *= rr
+            dyy *= rr
+            s_xz *= rr
+        sxx[i] = dxx + m
+        szz[i] = dzz + m
+        syy[i] = dyy + m
+        sxz[i] = s_xz
+
+
+@numba.njit(parallel=True, fastmath=True, cache=True)
+def kick_drift(x, z, vx, vz, rho, sxx, szz, sidx, ax, az, dt, damping, vmax_allowed, bad):
+    """v += dt a (optionally damped), x += dt v for the granular particles ``sidx``. Returns the
+    number of particles that went non-finite or faster than ``vmax_allowed`` (``bad`` flags)."""
+    nbad = 0
+    fdamp = 1.0 / (1.0 + damping * dt)
+    for kk in prange(sidx.shape[0]):
+        i = sidx[kk]
+        nvx = (vx[i] + dt * ax[i]) * fdamp
+        nvz = (vz[i] + dt * az[i]) * fdamp
+        vx[i] = nvx
+        vz[i] = nvz
+        x[i] += dt * nvx
+        z[i] += dt * nvz
+        ok = (nvx * nvx + nvz * nvz < vmax_allowed * vmax_allowed) and math.isfinite(
+            x[i] + z[i] + rho[i] + sxx[i] + szz[i])
+        if ok:
+            bad[kk] = 0
+        else:
+            bad[kk] = 1
+            nbad += 1
+    return nbad
+
+
+@numba.njit(parallel=True, fastmath=True, cache=True)
+def place_rigid(x, z, vx, vz, acc_x, acc_z, nox, noz, lidx, bx, bz, bnx, bnz,
+                hip_x, hip_z, hip_vx, hip_vz, hip_ax, hip_az, ang, omega, alpha):
+    """Place the leg particles ``lidx`` (body coordinates bx, bz; body outward normals bnx, bnz)
+    at hip + R(ang) s with R = [[cos, sin], [-sin, cos]] (clockwise), rigid velocity and
+    acceleration. omega is the clockwise angular speed d(ang)/dt, alpha its derivative."""
+    c = math.cos(ang)
+    s = math.sin(ang)
+    for kk in prange(lidx.shape[0]):
+        w = lidx[kk]
+        rx = c * bx[kk] + s * bz[kk]
+        rz = -s * bx[kk] + c * bz[kk]
+        x[w] = hip_x + rx
+        z[w] = hip_z + rz
+        # clockwise rotation: v = v_hip + omega * (rz, -rx)
+        vx[w] = hip_vx + omega * rz
+        vz[w] = hip_vz - omega * rx
+        acc_x[w] = hip_ax + alpha * rz - omega * omega * rx
+        acc_z[w] = hip_az - alpha * rx - omega * omega * rz
+        nox[w] = c * bnx[kk] + s * bnz[kk]
+        noz[w] = -s * bnx[kk] + c * bnz[kk]
+
+
+def warmup():
+    """Compile every kernel on a tiny problem (for benchmarks: keeps JIT out of timings)."""
+    from .solver import warmup as _w
+
+    _w()

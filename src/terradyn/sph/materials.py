@@ -1,0 +1,128 @@
+"""Granular materials for the SPH model: elastic-perfectly plastic Drucker-Prager.
+
+Every parameter carries its source (``sources``). The Drucker-Prager constants follow the
+plane-strain match to Mohr-Coulomb of Bui, Fukagawa, Sako & Ohno (2008), Int. J. Numer.
+Anal. Meth. Geomech. 32:1537, eq. 22:
+
+    alpha_phi = tan(phi) / sqrt(9 + 12 tan^2 phi),   k_c = 3 c / sqrt(9 + 12 tan^2 phi).
+
+Bulk densities, friction angles: Li, Zhang & Goldman (2013) supplement Table S1 (grain density
+x volume fraction; the angle of repose taken as the friction angle of a cohesionless packing,
+the critical-state angle). Poisson's ratio 0.3: Bui et al. (2008). Young's modulus: a
+*numerical* stiffness. Real packings are stiffer (tens of MPa), but the forces of slow,
+plastic flow do not depend on it while rho g H / E << 1 (here < 0.2 %), and the explicit time
+step scales with 1/sqrt(E): 1 MPa keeps the sound speed > 300 x the fastest leg speed (so the
+flow is quasi-static) and the full rotating-leg test inside the time budget. The stiffness
+check is :func:`terradyn.sph.scenes.stiffness_check` (forces change < a few % from 1 to 4 MPa).
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field, replace
+
+from ..errors import InputError, choice, in_range, positive
+from ..media import LI2013, MEDIA
+from ..units import DEG
+
+BUI2008 = ("H. H. Bui, R. Fukagawa, K. Sako, S. Ohno, Lagrangian meshfree particles method (SPH) "
+           "for large deformation and failure flows of geomaterial using elastic-plastic soil "
+           "constitutive model, Int. J. Numer. Anal. Meth. Geomech. 32:1537-1570 (2008)")
+JAKY1944 = "J. Jaky, The coefficient of earth pressure at rest, J. Soc. Hung. Archit. Eng. (1944)"
+
+
+@dataclass(frozen=True)
+class GranularMaterial:
+    """A dry granular material (SI). density: bulk density kg/m^3; youngs: Pa; poisson;
+    friction (phi) and dilatancy (psi) angles in rad; cohesion Pa; k0: lateral stress ratio of
+    the geostatic initial state (None: Jaky's 1 - sin phi)."""
+
+    name: str
+    density: float
+    youngs: float
+    poisson: float
+    friction: float
+    cohesion: float = 0.0
+    dilatancy: float = 0.0
+    k0: float | None = None
+    sources: dict = field(default_factory=dict, compare=False)
+
+    def __post_init__(self):
+        positive("density", self.density, "kg/m^3")
+        positive("youngs", self.youngs, "Pa")
+        in_range("poisson", self.poisson, 0.0, 0.499)
+        in_range("friction", self.friction, 0.0, 80 * DEG, "rad")
+        in_range("cohesion", self.cohesion, 0.0, 1e9, "Pa")
+        if self.dilatancy != 0.0:
+            raise InputError("dilatancy", "only non-dilatant flow (psi = 0, Bui et al. 2008) is implemented")
+        if self.k0 is not None:
+            in_range("k0", self.k0, 0.0, 1.0)
+
+    @property
+    def shear_modulus(self) -> float:
+        return self.youngs / (2 * (1 + self.poisson))
+
+    @property
+    def bulk_modulus(self) -> float:
+        return self.youngs / (3 * (1 - 2 * self.poisson))
+
+    @property
+    def sound_speed(self) -> float:
+        """P-wave speed sqrt((K + 4G/3)/rho), m/s: sets the explicit time step."""
+        return math.sqrt((self.bulk_modulus + 4 * self.shear_modulus / 3) / self.density)
+
+    @property
+    def alpha_phi(self) -> float:
+        t = math.tan(self.friction)
+        return t / math.sqrt(9 + 12 * t * t)
+
+    @property
+    def k_c(self) -> float:
+        t = math.tan(self.friction)
+        return 3 * self.cohesion / math.sqrt(9 + 12 * t * t)
+
+    @property
+    def lateral_ratio(self) -> float:
+        return self.k0 if self.k0 is not None else 1 - math.sin(self.friction)
+
+    def with_(self, **kw) -> "GranularMaterial":
+        return replace(self, **kw)
+
+    def describe(self) -> dict:
+        return {"name": self.name, "density_kg_m3": self.density, "youngs_Pa": self.youngs,
+                "poisson": self.poisson, "friction_deg": self.friction / DEG,
+                "cohesion_Pa": self.cohesion, "dilatancy_deg": self.dilatancy / DEG,
+                "k0": self.lateral_ratio, "sources": self.sources}
+
+
+NUMERICAL_E = 1.0e6
+
+
+def from_medium(medium: str, youngs: float = NUMERICAL_E, poisson: float = 0.3,
+                friction_deg: float | None = None) -> GranularMaterial:
+    """The SPH material for a medium of :data:`terradyn.media.MEDIA` (Li 2013 Table S1)."""
+    choice("medium", medium, list(MEDIA))
+    m = MEDIA[medium]
+    phi = m.repose_angle if friction_deg is None else in_range("friction", friction_deg, 0, 80, "deg") * DEG
+    return GranularMaterial(
+        name=medium, density=m.bulk_density, youngs=youngs, poisson=poisson, friction=phi,
+        sources={
+            "density": f"grain density x volume fraction, {LI2013}, Table S1",
+            "friction": (f"angle of repose, {LI2013}, Table S1" if friction_deg is None
+                         else "user / calibration"),
+            "poisson": BUI2008,
+            "youngs": "numerical stiffness (see terradyn.sph.materials docstring)",
+            "cohesion": "0: dry cohesionless grains",
+            "k0": f"Jaky 1 - sin(phi): {JAKY1944}",
+            "drucker_prager_constants": f"plane-strain Mohr-Coulomb match, {BUI2008}, eq. 22",
+        })
+
+
+#: Material presets by medium name (the five media of Li 2013).
+MATERIALS: dict[str, GranularMaterial] = {name: from_medium(name) for name in MEDIA}
+
+
+def material(name_or_material: str | GranularMaterial) -> GranularMaterial:
+    if isinstance(name_or_material, GranularMaterial):
+        return name_or_material
+    choice("medium", name_or_material, list(MATERIALS))
+    return MATERIALS[name_or_material]

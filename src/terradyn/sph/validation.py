@@ -1,0 +1,175 @@
+"""The SPH validation scenes of issue 4: each returns plain numbers and arrays (SI) that the
+tests check in quick form and :mod:`terradyn.sph.plots` draws in full form.
+
+1. :func:`bed_at_rest`  - stresses with depth against the geostatic values.
+2. :func:`column_collapse` - run-out and final height against Lube et al. (2005).
+3. :func:`plate_push` - a horizontal plate pushed down: alpha_z(0, pi/2) against Li (2013).
+4. :func:`rotating_leg` - SPH against RFT for a leg in the rotating-leg test.
+"""
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from ..errors import positive
+from ..geometry import ArcLeg
+from ..media import MEDIA, stress_model
+from ..motion import PlanarMotion, Rotation
+from ..units import CM, DEG, G, N_PER_CM3
+from .materials import GranularMaterial, material as _material
+from .scenes import bed_scene, column_scene
+from .solver import SPHConfig, run
+
+LUBE2005 = ("G. Lube, H. E. Huppert, R. S. J. Sparks, A. Freundt, Collapses of two-dimensional "
+            "granular columns, Phys. Rev. E 72:041301 (2005)")
+
+
+# ---------------------------------------------------------------------------- 1. bed at rest
+def bed_at_rest(medium="3 mm glass CP", *, width=0.2, depth=0.1, dx=4e-3, initial="zero",
+                settle_time: float | None = None, bins: int = 10) -> dict:
+    """Settle a bed under gravity (from zero stress by default) and bin the stresses by depth.
+
+    Returns depth (bins,) m, szz, sxx (bins,) Pa (tension positive, so negative), the
+    geostatic rho g d, the fitted slope d(-szz)/d(depth) (Pa/m) against rho g, and the lateral
+    ratio sxx/szz against the Drucker-Prager limit (1 - sqrt3 a)/(1 + 2 sqrt3 a) that a bed
+    loaded from zero stress reaches (its elastic K0 = nu/(1 - nu) lies outside the cone)."""
+    mat = _material(medium)
+    cfg = SPHConfig(dx=dx, settle_time=settle_time)
+    sc = bed_scene(width=width, depth=depth, medium=mat, initial=initial, config=cfg)
+    res = run(sc, 0.0 if initial == "zero" else 0.1)
+    s = res.solver
+    st = s.stress()
+    core = np.abs(st["x"]) < 0.25 * width
+    d = -st["z"][core]
+    edges = np.linspace(0, depth, bins + 1)
+    k = np.clip(np.digitize(d, edges) - 1, 0, bins - 1)
+    mid = 0.5 * (edges[1:] + edges[:-1])
+    szz = np.array([st["szz"][core][k == b].mean() for b in range(bins)])
+    sxx = np.array([st["sxx"][core][k == b].mean() for b in range(bins)])
+    inner = (mid > 3 * dx) & (mid < depth - 3 * dx)  # away from the free surface and floor
+    slope = float(np.polyfit(mid[inner], -szz[inner], 1)[0])
+    a = mat.alpha_phi
+    r3 = math.sqrt(3) * a
+    return {"depth": mid, "szz": szz, "sxx": sxx, "geostatic": mat.density * G * mid,
+            "slope": slope, "rho_g": mat.density * G,
+            "lateral_ratio": float(np.median(sxx[inner] / szz[inner])),
+            "lateral_ratio_dp_limit": (1 - r3) / (1 + 2 * r3),
+            "lateral_ratio_k0": mat.lateral_ratio, "initial": initial,
+            "max_speed": float(np.hypot(s.vx[s.sidx], s.vz[s.sidx]).max())}
+
+
+# ----------------------------------------------------------------------- 2. column collapse
+def lube2005(aspect) -> tuple[np.ndarray, np.ndarray]:
+    """Lube et al. (2005) 2D fits: normalised run-out (L_f - L_i)/L_i = 1.2 a (a < 1.8),
+    1.9 a^(2/3) (a > 2.8), linear interpolation between; final height H_f/L_i = a (a < 1.15),
+    a^(2/5) above."""
+    a = np.asarray(aspect, float)
+    lo, hi = 1.2 * a, 1.9 * a ** (2 / 3)
+    w = np.clip((a - 1.8) / (2.8 - 1.8), 0, 1)
+    runout = (1 - w) * lo + w * hi
+    height = np.where(a < 1.15, a, a ** 0.4)
+    return runout, height
+
+
+def column_collapse(aspect: float, medium="3 mm glass CP", *, base=0.06, dx=4e-3,
+                    duration: float | None = None, snapshots: int = 0) -> dict:
+    """Collapse a 2D column of width ``base`` and height aspect x base against a wall; returns
+    the normalised run-out (L_f - L_i)/L_i and final height H_f/L_i with Lube's values."""
+    positive("aspect", aspect)
+    mat = _material(medium)
+    cfg = SPHConfig(dx=dx, settle_time=0.0)
+    sc = column_scene(aspect, base=base, medium=mat, config=cfg)
+    H = aspect * base
+    T = duration if duration is not None else 3.0 * math.sqrt(2 * H / G) + 0.25
+    times = np.linspace(0, T, snapshots) if snapshots else ()
+    res = run(sc, T, snapshot_times=times)
+    s = res.solver
+    x = s.x[s.sidx]
+    z = s.z[s.sidx]
+    front = float(np.quantile(x, 0.998)) + 0.5 * dx
+    top = float(z[x < 2 * dx].max()) + 0.5 * dx if (x < 2 * dx).any() else float(z.max() + 0.5 * dx)
+    lr, lh = lube2005(aspect)
+    return {"aspect": aspect, "runout": (front - base) / base, "height": top / base,
+            "runout_lube": float(lr), "height_lube": float(lh), "x": x, "z": z,
+            "snapshots": res.snapshots, "max_speed": float(np.hypot(s.vx[s.sidx], s.vz[s.sidx]).max()),
+            "duration": T}
+
+
+# ----------------------------------------------------------------------------- 3. plate push
+def plate_push(medium="3 mm glass CP", *, length=3.81 * CM, width=2.54 * CM, thickness=0.64 * CM,
+               speed=0.01, depth=0.05, dx=2.5e-3, n_samples=51, config: SPHConfig | None = None,
+               fit_from=0.01) -> dict:
+    """Push a horizontal plate straight down at ``speed`` (m/s) from the surface to ``depth``;
+    vertical stress on the plate per depth = alpha_z(0, pi/2) (N/m^3), fitted on depths >
+    ``fit_from``, against the measured value of Li 2013 (Table S1 footnote, via MEDIA)."""
+    from .api import simulate
+
+    mat = _material(medium)
+    cfg = config or SPHConfig(dx=dx)
+    plate = ArcLeg(width, 20, length, 0.0, "plate", direction=math.pi / 2)
+    z0 = 0.5 * thickness + 0.5 * dx
+    T = (depth + z0) / speed
+    t = np.linspace(0, T, n_samples)
+    mot = PlanarMotion(t, np.full_like(t, -length / 2), z0 - speed * t, np.zeros_like(t),
+                       hip_vx=np.zeros_like(t), hip_vz=np.full_like(t, -speed),
+                       angular_velocity=np.zeros_like(t))
+    ds = simulate(plate, mot, mat, config=cfg, thickness=thickness,
+                  bed_width=max(6 * length, 0.15), bed_depth=depth + max(2 * length, 0.04))
+    d = -(z0 - speed * t)  # plate centre depth
+    stress = ds.Fz.values / (length * width)
+    m = d > fit_from
+    slope = float(np.polyfit(d[m], stress[m], 1)[0]) if m.sum() >= 2 else float("nan")
+    ax, az = stress_model(medium, "fit").alpha(0.0, np.pi / 2) if mat.name in MEDIA else (0.0, np.nan)
+    measured = MEDIA[mat.name].alpha_z_plate if mat.name in MEDIA else None
+    return {"depth": d, "stress": stress, "alpha_z": slope, "alpha_z_measured": measured,
+            "alpha_z_fit": float(az), "series": ds, "Fx": ds.Fx.values}
+
+
+# --------------------------------------------------------------------------- 4. rotating leg
+def compare_with_rft(sph, rft) -> dict:
+    """Peak differences (%), mean square errors (N^2), suction and asymmetry of two series on
+    the same theta grid (SPH first)."""
+    th = sph.theta.values
+    out = {}
+    for comp in ("Fx", "Fz"):
+        a = sph[comp].values
+        b = rft[comp].values
+        pa, pb = np.abs(a).max(), np.abs(b).max()
+        out[f"peak_{comp}_sph"] = float(a[np.argmax(np.abs(a))])
+        out[f"peak_{comp}_rft"] = float(b[np.argmax(np.abs(b))])
+        out[f"peak_{comp}_diff_pct"] = float(100 * abs(pa - pb) / max(pb, 1e-12))
+        out[f"mse_{comp}"] = float(np.mean((a - b) ** 2))
+    for name, s in (("sph", sph), ("rft", rft)):
+        fz = s.Fz.values
+        out[f"lift_intrusion_max_{name}"] = float(fz[th < 0].max()) if (th < 0).any() else 0.0
+        out[f"lift_extraction_max_{name}"] = float(fz[th > 0].max()) if (th > 0).any() else 0.0
+        out[f"suction_min_{name}"] = float(fz.min())
+        out[f"suction_span_deg_{name}"] = float(np.sum(fz < -1e-3 * max(np.abs(fz).max(), 1e-12))
+                                                * (abs(th[1] - th[0]) if len(th) > 1 else 0.0))
+    return out
+
+
+def rotating_leg(leg, omega=0.2, medium="3 mm glass CP", *, quick=False, n_theta=271,
+                 theta_start=-135 * DEG, theta_end=135 * DEG, config: SPHConfig | None = None,
+                 progress=None, checkpoint=None) -> dict:
+    """The rotating-leg test (brief 2.2) in SPH and RFT (the medium's Fourier fit); returns
+    both series and :func:`compare_with_rft` numbers."""
+    from ..rft import simulate as rft_simulate
+    from .api import simulate
+
+    mot = Rotation(omega=omega, hip_height=2 * CM, theta_start=theta_start, theta_end=theta_end,
+                   n_theta=n_theta)
+    sph = simulate(leg, mot, medium, quick=quick, config=config, progress=progress,
+                   checkpoint=checkpoint)
+    rft = rft_simulate(leg, mot, stress_model(medium if isinstance(medium, str) else medium.name))
+    return {"sph": sph, "rft": rft, "metrics": compare_with_rft(sph, rft)}
+
+
+def alpha_z_plate_measured(medium: str) -> float:
+    """Li 2013 measured alpha_z(0, pi/2), N/m^3."""
+    return MEDIA[medium].alpha_z_plate
+
+
+__all__ = ["bed_at_rest", "column_collapse", "plate_push", "rotating_leg", "compare_with_rft",
+           "lube2005", "LUBE2005", "N_PER_CM3"]
