@@ -38,7 +38,7 @@ def write(ds: xr.Dataset, path: str | Path) -> Path:
     suf = _fmt(path)
     path.parent.mkdir(parents=True, exist_ok=True)
     if suf == ".zarr":
-        ds.to_zarr(path, mode="w")
+        ds.to_zarr(path, mode="w", consolidated=False)
         return path
     tmp = path.with_name(f".{path.name}.tmp")
     if suf == ".nc":
@@ -60,7 +60,7 @@ def read(path: str | Path) -> xr.Dataset:
         with xr.open_dataset(path, engine="h5netcdf") as f:
             return f.load()
     if suf == ".zarr":
-        return xr.open_zarr(path).load()
+        return xr.open_zarr(path, consolidated=False).load()
     return read_csv(path)
 
 
