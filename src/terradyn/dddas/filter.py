@@ -392,3 +392,11 @@ class ParticleFilter:
         C = self.particles
         X = C - w @ C
         return (X.T * w) @ X
+
+
+def warmup() -> None:
+    """Compile (or load from Numba's cache) the particle-filter kernels, for both resamplers."""
+    for method in RESAMPLERS:
+        pf = ParticleFilter(np.zeros(2), prior_std=np.ones(2), n_particles=16, resample=method, rng=0)
+        pf.update(np.ones(2), 0.0, 0.5, 1.0)
+        pf.resample()

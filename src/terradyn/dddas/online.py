@@ -26,12 +26,20 @@ class Assimilation:
 
     obs_std: observation noise std per component, N (a float for all, or a dict such as
     {"Fz": 0.5}); method: "pf" (particle filter) or "exact" (Gaussian posterior);
-    prior_inflation multiplies the GP's coefficient std; the remaining keywords go to
+    prior_inflation multiplies the GP's coefficient std; prior_floor (>= 0) sets a lower bound
+    on it as a fraction of the spread (std) of the training cases' coefficients: the GP's std
+    measures interpolation uncertainty between training conditions only, and a floor lets the
+    data move the prediction when reality differs from every training case (a real trial vs
+    RFT-trained surrogate); model_error adds the surrogate's representation error (what its
+    truncated basis misses of the training data, per step) to the sensor noise variance, so
+    the likelihood does not trust the truncated model more than it deserves (without it a
+    particle filter collapses early onto a wrong value); the remaining keywords go to
     :class:`ParticleFilter` (n_particles, resample, ess_threshold, jitter, rng, backend).
     """
 
     def __init__(self, surrogate: Surrogate, condition, obs_std: float | dict = 0.1, method: str = "pf",
-                 prior_inflation: float = 1.0, **pf_options):
+                 prior_inflation: float = 1.0, prior_floor: float = 0.0, model_error: bool = True,
+                 **pf_options):
         self.surrogate = surrogate
         X = surrogate.conditions_array(condition)
         if len(X) != 1:
@@ -48,15 +56,20 @@ class Assimilation:
             s = positive("obs-std", obs_std, "N")
             self.obs_std = {c: s for c in comps}
         infl = positive("prior-inflation", prior_inflation)
+        floor = float(prior_floor)
+        if not (math.isfinite(floor) and floor >= 0):
+            raise InputError("prior-floor", f"must be >= 0, got {prior_floor!r}")
         mu, sd = surrogate.predict_coefficients(X)
-        self.prior_mean, self.prior_std = mu[0], sd[0] * infl
+        spread = surrogate.coef_train_.std(axis=0)
+        self.prior_mean, self.prior_std = mu[0], np.maximum(sd[0] * infl, floor * spread)
         if self.method == "pf":
             self.post = ParticleFilter(self.prior_mean, prior_std=self.prior_std, **pf_options)
         else:
             if pf_options:
                 raise InputError("method", f"options {sorted(pf_options)} apply only to method='pf'")
             self.post = GaussianPosterior(self.prior_mean, np.diag(self.prior_std ** 2))
-        self._rows: dict[tuple[str, float], tuple[np.ndarray, float]] = {}
+        self.model_error = bool(model_error)
+        self._rows: dict[tuple[str, float], tuple[np.ndarray, float, float]] = {}
         self.n_samples = 0
 
     def _row(self, component: str, value: float):
@@ -64,8 +77,10 @@ class Assimilation:
         key = (component, value)
         r = self._rows.get(key)
         if r is None:
-            H, off = self.surrogate.observation_rows(value, component)
-            r = (H[0], float(off[0]))
+            H, off, err = self.surrogate.observation_rows(value, component, with_error=True)
+            s = self.obs_std[component]
+            sigma = math.sqrt(s * s + float(err[0]) ** 2) if self.model_error else s
+            r = (H[0], float(off[0]), sigma)
             if len(self._rows) < 100_000:
                 self._rows[key] = r
         return r
@@ -83,8 +98,8 @@ class Assimilation:
                 raise InputError(comp, "this surrogate does not model it")
             if not math.isfinite(y):
                 raise InputError(comp, f"observation must be finite, got {y}")
-            h, off = self._row(comp, float(coord_value))
-            ess = self.post.update(h, off, float(y), self.obs_std[comp])
+            h, off, sigma = self._row(comp, float(coord_value))
+            ess = self.post.update(h, off, float(y), sigma)
         self.n_samples += 1
         return ess
 
@@ -97,7 +112,7 @@ class Assimilation:
         m, P = self.posterior()
         mean, std = self.surrogate.forces_from_coefficients(m, P)
         extra = {"assimilation": {"method": self.method, "samples": self.n_samples,
-                                  "obs_std_N": self.obs_std,
+                                  "obs_std_N": self.obs_std, "model_error": self.model_error,
                                   "particles": getattr(self.post, "n", None),
                                   "resamples": getattr(self.post, "n_resamples", None)}}
         return self.surrogate.series(mean, std, self.condition, f"dddas-{self.method}", extra)

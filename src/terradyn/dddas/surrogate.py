@@ -168,8 +168,16 @@ class Surrogate(BaseEstimator):
         self.Y_train_ = Y
         self.coef_train_ = h.coefficients.copy()   # (n, D)
         self.trained_on_ = dict(trained_on or {})
+        self._set_residual()
         self._fit_gps(optimize=True)
         return self
+
+    def _set_residual(self):
+        # Representation error: what the truncated basis cannot reproduce of the training
+        # cases, RMS over cases at each step, in N (N m). The online filter adds it to the
+        # sensor noise, otherwise the likelihood trusts the truncated model too much.
+        rec = (np.tensordot(self.coef_train_, self.basis_, axes=(1, 0)) + self.mean_) * self.scale_
+        self.residual_std_ = np.sqrt(((self.Y_train_ - rec) ** 2).mean(axis=0))
 
     def _fit_gps(self, optimize: bool, thetas: np.ndarray | None = None):
         from sklearn.gaussian_process import GaussianProcessRegressor
@@ -267,10 +275,11 @@ class Surrogate(BaseEstimator):
         return stack(out, {n: X[:, k] for k, n in enumerate(self.input_names_)})
 
     # ------------------------------------------------------------------ observation model
-    def observation_rows(self, coord_values, component: str) -> tuple[np.ndarray, np.ndarray]:
+    def observation_rows(self, coord_values, component: str, with_error: bool = False):
         """Linear observation model at motion-coordinate values (m,) for ``component``:
         y = H @ c + offset with H (m, D), offset (m,) in N (N m). Values between grid points
-        interpolate linearly; outside the grid raises."""
+        interpolate linearly; outside the grid raises. ``with_error`` also returns the
+        representation error std (m,) there (see ``residual_std_``)."""
         self._check_fitted()
         if component not in self.components_:
             raise InputError("component", f"the surrogate models {self.components_}, not {component!r}")
@@ -289,6 +298,9 @@ class Surrogate(BaseEstimator):
         B = self.basis_[:, :, j]
         H = ((1 - w) * B[:, k0].T + w * B[:, k0 + 1].T) * s
         off = ((1 - w[:, 0]) * self.mean_[k0, j] + w[:, 0] * self.mean_[k0 + 1, j]) * s
+        if with_error:
+            r = self.residual_std_[:, j]
+            return np.ascontiguousarray(H), off, (1 - w[:, 0]) * r[k0] + w[:, 0] * r[k0 + 1]
         return np.ascontiguousarray(H), off
 
     def forces_from_coefficients(self, mean_c: np.ndarray, cov_c: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -407,6 +419,7 @@ class Surrogate(BaseEstimator):
         est.Y_train_ = arr["train_Y"]
         est.coef_train_ = arr["train_coef"]
         est.trained_on_ = trained_on
+        est._set_residual()
         if arr["gp_theta"].shape[1] != est._kernel(q).n_dims:
             raise bad("GP hyperparameter count does not match the kernel")
         est._fit_gps(optimize=False, thetas=arr["gp_theta"])

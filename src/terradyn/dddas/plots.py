@@ -1,0 +1,149 @@
+"""Figures for the DDDAS surrogate, cross-validation, assimilation and experiment trials
+(matplotlib, Agg backend). Every function writes one file and returns its path."""
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import xarray as xr
+
+UNITS = {"Fx": "N", "Fz": "N", "torque": "N m"}
+LABELS = {"Fx": "horizontal force Fx", "Fz": "vertical force Fz", "torque": "torque"}
+
+
+def _plt():
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    return plt
+
+
+def _xlabel(coord: str) -> str:
+    return "leg angle theta (deg)" if coord == "theta" else "time (s)"
+
+
+def explained_variance(surrogate, path, title: str = "") -> Path:
+    """Cumulative explained variance per HOSVD mode, with the energy threshold and the kept ranks."""
+    plt = _plt()
+    fig, ax = plt.subplots(figsize=(6, 4), constrained_layout=True)
+    names = ("mode 1 (conditions)", "mode 2 (steps)", "mode 3 (components)")
+    for k, (cv, r) in enumerate(zip(surrogate.explained_variance_, surrogate.ranks_)):
+        n = min(len(cv), 20)
+        ax.plot(np.arange(1, n + 1), cv[:n], "o-", ms=3, label=f"{names[k]}: kept {r}")
+    ax.axhline(surrogate.energy, color="k", ls=":", lw=1, label=f"threshold {surrogate.energy:g}")
+    ax.set_xlabel("number of singular vectors kept")
+    ax.set_ylabel("cumulative explained variance (-)")
+    ax.set_title(title or "HOSVD explained variance")
+    ax.legend(fontsize=8)
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    fig.savefig(path, dpi=130)
+    plt.close(fig)
+    return path
+
+
+def prediction(pred: xr.Dataset, path, truth: xr.Dataset | None = None, title: str = "",
+               observations: xr.Dataset | None = None, prior: xr.Dataset | None = None) -> Path:
+    """Predicted Fx and Fz with +-2 std bands; optional truth, prior and observations."""
+    plt = _plt()
+    from ..series import coord_of
+
+    c = coord_of(pred)
+    fig, axes = plt.subplots(1, 2, figsize=(11, 4), constrained_layout=True)
+    for ax, v in zip(axes, ("Fx", "Fz")):
+        x = pred[c].values
+        if prior is not None:
+            ax.plot(x, prior[v].values, color="0.5", ls="--", lw=1, label="prior (surrogate)")
+            if f"{v}_std" in prior:
+                ax.fill_between(x, prior[v] - 2 * prior[f"{v}_std"], prior[v] + 2 * prior[f"{v}_std"],
+                                color="0.5", alpha=0.15, lw=0)
+        if observations is not None and v in observations:
+            ax.plot(observations[c].values, observations[v].values, ".", ms=2, color="tab:orange",
+                    alpha=0.6, label="observations")
+        ax.plot(x, pred[v].values, color="tab:blue", label=pred.attrs.get("model", "prediction"))
+        if f"{v}_std" in pred:
+            ax.fill_between(x, pred[v] - 2 * pred[f"{v}_std"], pred[v] + 2 * pred[f"{v}_std"],
+                            color="tab:blue", alpha=0.25, lw=0, label="+-2 std")
+        if truth is not None:
+            ax.plot(truth[c].values, truth[v].values, color="k", lw=1, label="truth")
+        ax.set_xlabel(_xlabel(c))
+        ax.set_ylabel(f"{LABELS[v]} ({UNITS[v]})")
+        ax.legend(fontsize=8)
+    fig.suptitle(title)
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    fig.savefig(path, dpi=130)
+    plt.close(fig)
+    return path
+
+
+def cv_errors(cv: xr.Dataset, path, title: str = "", reported: float | None = None) -> Path:
+    """Leave-one-out mean square error per held-out case and component (bars), with the
+    nearest-case baseline and, when given, a reference line (e.g. the thesis's reported MSE)."""
+    plt = _plt()
+    names = [n for n in cv.coords if n not in ("case", "component", "mode") and cv[n].dims == ("case",)]
+    label = names[0] if names else "case"
+    xv = cv[label].values if names else cv["case"].values
+    comps = list(cv["component"].values)
+    fig, axes = plt.subplots(1, len(comps), figsize=(5 * len(comps), 4), constrained_layout=True, squeeze=False)
+    idx = np.arange(len(xv))
+    for ax, comp in zip(axes[0], comps):
+        ax.bar(idx - 0.2, cv["mse"].sel(component=comp).values, 0.4, label="surrogate (held out)")
+        ax.bar(idx + 0.2, cv["mse_nearest"].sel(component=comp).values, 0.4, label="nearest training case",
+               color="0.6")
+        if "mse_baseline" in cv:
+            ax.plot(idx, cv["mse_baseline"].sel(component=comp).values, "k^", label=cv["mse_baseline"].attrs.get("source", "baseline"))
+        if reported is not None:
+            ax.axhline(reported, color="tab:red", ls=":", label=f"thesis reported ~{reported:g}")
+        ax.set_xticks(idx, [f"{v:g}" for v in xv], rotation=45, fontsize=8)
+        ax.set_xlabel(f"held-out condition: {label}")
+        ax.set_ylabel(f"mean square error of {comp} ({UNITS.get(comp, 'N')}^2)")
+        ax.set_yscale("log")
+        ax.legend(fontsize=8)
+    fig.suptitle(title or "leave-one-condition-out cross-validation")
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    fig.savefig(path, dpi=130)
+    plt.close(fig)
+    return path
+
+
+def trial_comparison(cmp: xr.Dataset, path, title: str = "") -> Path:
+    """Raw, filtered and RFT-model normal force (and torque) against time."""
+    plt = _plt()
+    vars_ = [v for v in ("normal_force", "torque") if f"{v}_raw" in cmp]
+    fig, axes = plt.subplots(1, len(vars_), figsize=(5.5 * len(vars_), 4), constrained_layout=True, squeeze=False)
+    t = cmp["time"].values
+    for ax, v in zip(axes[0], vars_):
+        unit = "N" if v == "normal_force" else "N m"
+        ax.plot(t, cmp[f"{v}_raw"], color="0.7", lw=0.6, label="raw")
+        ax.plot(t, cmp[f"{v}_filtered"], color="tab:blue", label="filtered (zero-phase Butterworth)")
+        ax.plot(t, cmp[f"{v}_model"], color="tab:red", ls="--", label="RFT at the actual angles")
+        ax.set_xlabel("time (s)")
+        ax.set_ylabel(f"{v.replace('_', ' ')} ({unit})")
+        ax.legend(fontsize=8)
+    syn = " [SYNTHETIC DATA]" if int(cmp.attrs.get("synthetic", 0)) else ""
+    fig.suptitle((title or "trial vs RFT") + syn)
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    fig.savefig(path, dpi=130)
+    plt.close(fig)
+    return path
+
+
+def ess_trace(ess: np.ndarray, x: np.ndarray, path, n_particles: int, xlabel: str, title: str = "") -> Path:
+    """Effective sample size after each assimilated sample."""
+    plt = _plt()
+    fig, ax = plt.subplots(figsize=(6, 3.5), constrained_layout=True)
+    ax.plot(x, ess, lw=1, label="ESS after update")
+    ax.axhline(n_particles / 2, color="k", ls=":", lw=1, label="resampling threshold (N/2)")
+    ax.set_xlabel(xlabel)
+    ax.set_ylabel("effective sample size (particles)")
+    ax.set_title(title or "particle filter")
+    ax.legend(fontsize=8)
+    path = Path(path)
+    fig.savefig(path, dpi=130)
+    plt.close(fig)
+    return path
