@@ -154,3 +154,80 @@ def assimilate(surrogate: Surrogate, condition, observations: xr.Dataset, obs_st
     out.attrs["ess_min"] = float(np.min(ess)) if len(ess) else float("nan")
     out.attrs["samples_assimilated"] = int(np.sum(np.any([np.isfinite(x) for x in comps.values()], 0)))
     return out
+
+
+def read_observations(path, coord: str | None = None) -> xr.Dataset:
+    """Observations from a file: .nc/.zarr (a Dataset with theta or time and Fx and/or Fz) or
+    CSV with a ``theta_deg`` or ``time_s`` column and ``Fx_N`` and/or ``Fz_N`` (empty cells
+    are missing samples)."""
+    from pathlib import Path
+
+    path = Path(path)
+    if not path.is_file() and not path.is_dir():
+        raise InputError("observations", f"file not found: {path}")
+    if path.suffix.lower() in (".nc", ".zarr"):
+        ds = xr.open_dataset(path, engine="h5netcdf").load() if path.suffix.lower() == ".nc" \
+            else xr.open_zarr(path).load()
+        return ds
+    import pandas as pd
+
+    try:
+        df = pd.read_csv(path, comment="#")
+    except Exception as e:  # pandas raises many kinds
+        raise InputError("observations", f"{path}: not a readable CSV ({e})") from None
+    return _obs_from_columns(df.columns, {c: df[c].to_numpy() for c in df.columns}, str(path))
+
+
+def _obs_from_columns(columns, data, where: str) -> xr.Dataset:
+    cols = list(columns)
+    c = "theta" if "theta_deg" in cols else "time" if "time_s" in cols else None
+    comps = [k for k in ("Fx", "Fz") if f"{k}_N" in cols]
+    if c is None or not comps:
+        raise InputError("observations", f"{where}: need a theta_deg or time_s column and Fx_N and/or Fz_N; got {cols}")
+    out = xr.Dataset(coords={c: np.asarray(data[f"{c}_deg" if c == "theta" else "time_s"], float)})
+    for k in comps:
+        out[k] = (c, np.asarray(data[f"{k}_N"], float))
+    return out
+
+
+def stream_csv(assim: Assimilation, lines, every: int = 0, report=None) -> int:
+    """Assimilate CSV lines (a header with theta_deg or time_s and Fx_N and/or Fz_N, then one
+    sample per line, empty cells missing) as they arrive, e.g. from standard input. Calls
+    ``report(n, ess)`` every ``every`` samples. Returns the number of samples."""
+    it = iter(lines)
+    try:
+        header = next(it).strip().split(",")
+    except StopIteration:
+        raise InputError("observations", "no header line on the stream") from None
+    coord = "theta_deg" if "theta_deg" in header else "time_s" if "time_s" in header else None
+    if coord is None or not any(f"{k}_N" in header for k in ("Fx", "Fz")):
+        raise InputError("observations", f"stream header needs theta_deg or time_s and Fx_N and/or Fz_N; got {header}")
+    want = "theta" if coord == "theta_deg" else "time"
+    if want != assim.surrogate.coord_:
+        raise InputError("observations", f"the surrogate's coordinate is {assim.surrogate.coord_!r}, the stream gives {want!r}")
+    ic = header.index(coord)
+    ix = header.index("Fx_N") if "Fx_N" in header else None
+    iz = header.index("Fz_N") if "Fz_N" in header else None
+    n = 0
+    for lineno, line in enumerate(it, start=2):
+        line = line.strip()
+        if not line or line.startswith("#"):
+            continue
+        f = line.split(",")
+
+        def num(i):
+            if i is None or i >= len(f) or f[i].strip() == "":
+                return None
+            try:
+                return float(f[i])
+            except ValueError:
+                raise InputError("observations", f"line {lineno}: not a number: {f[i]!r}") from None
+
+        x = num(ic)
+        if x is None:
+            raise InputError("observations", f"line {lineno}: missing {coord}")
+        ess = assim.update(x, num(ix), num(iz))
+        n += 1
+        if report and every and n % every == 0:
+            report(n, ess)
+    return n

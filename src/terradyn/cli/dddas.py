@@ -1,0 +1,190 @@
+"""``terradyn dddas``: fit, cross-validate, predict and assimilate with the DDDAS surrogate."""
+from __future__ import annotations
+
+import json
+import sys
+from enum import Enum
+from pathlib import Path
+from typing import List, Optional
+
+import typer
+
+Method = Enum("Method", {"pf": "pf", "exact": "exact"}, type=str)
+Resampler = Enum("Resampler", {"systematic": "systematic", "multinomial": "multinomial"}, type=str)
+Study = Enum("Study", {"legs": "legs", "foot": "foot"}, type=str)
+
+
+def _err(msg):
+    from . import err
+
+    err(msg)
+
+
+def _conditions(at: List[str]) -> dict:
+    from ..errors import InputError
+
+    out = {}
+    for a in at:
+        if "=" not in a:
+            raise InputError("at", f"expected NAME=VALUE, got {a!r}")
+        k, v = a.split("=", 1)
+        try:
+            out[k.strip()] = float(v)
+        except ValueError:
+            raise InputError("at", f"{k}: not a number: {v!r}") from None
+    if not out:
+        raise InputError("at", "give the condition, e.g. --at omega=0.5")
+    return out
+
+
+def _estimator(inputs, energy, center, restarts, seed):
+    from ..dddas import Surrogate
+
+    return Surrogate(inputs=inputs or None, energy=energy, center=center, n_restarts=restarts, random_state=seed)
+
+
+def register(app: typer.Typer) -> None:
+    dd = typer.Typer(help="DDDAS: surrogate (HOSVD + Gaussian processes) and online assimilation.",
+                     no_args_is_help=True)
+    app.add_typer(dd, name="dddas")
+
+    @dd.command()
+    def fit(
+        data: Path = typer.Argument(..., help="Stacked force series along 'case' (.nc/.zarr) with condition coordinates."),
+        out: Path = typer.Option(..., "--out", "-o", help="Model file to write (.nc)."),
+        inputs: List[str] = typer.Option([], "--input", "-i", help="Condition coordinate(s) to regress on [default: all numeric ones along case]."),
+        energy: float = typer.Option(0.95, help="Cumulative explained variance kept per HOSVD mode."),
+        center: bool = typer.Option(True, help="Subtract the mean trajectory before the HOSVD (--no-center: thesis form)."),
+        restarts: int = typer.Option(2, help="GP optimizer restarts."),
+        seed: int = typer.Option(0, help="Seed for the optimizer restarts."),
+        plot: Optional[Path] = typer.Option(None, help="Explained-variance figure (.png)."),
+    ):
+        """Fit the surrogate to a stack of force series and save it (NetCDF, no pickle)."""
+        from .. import io
+
+        sur = _estimator(inputs, energy, center, restarts, seed).fit(io.read(data))
+        sur.save(out)
+        if plot:
+            from ..dddas import plots
+
+            plots.explained_variance(sur, plot)
+        _err(f"fitted: inputs {sur.input_names_}, HOSVD ranks {sur.ranks_}; wrote {out}")
+
+    @dd.command()
+    def cv(
+        data: Path = typer.Argument(..., help="Stacked force series along 'case' (.nc/.zarr)."),
+        out: Optional[str] = typer.Option(None, "--out", "-o", help="Table (.csv) or full result (.nc) [default: CSV on stdout]."),
+        inputs: List[str] = typer.Option([], "--input", "-i", help="Condition coordinate(s)."),
+        energy: float = typer.Option(0.95, help="Cumulative explained variance kept per HOSVD mode."),
+        center: bool = typer.Option(True, help="Subtract the mean trajectory before the HOSVD."),
+        restarts: int = typer.Option(2, help="GP optimizer restarts."),
+        seed: int = typer.Option(0, help="Seed for the optimizer restarts."),
+        baseline: Optional[Path] = typer.Option(None, help="Another stack on the same cases (e.g. RFT) to compare errors with."),
+        plot: Optional[Path] = typer.Option(None, help="Figure of the errors (.png)."),
+    ):
+        """Leave-one-condition-out cross-validation: mean square error (N^2) per case and component."""
+        from .. import io
+        from ..dddas.crossval import cross_validate, mse_table
+
+        ds = io.read(data)
+        res = cross_validate(ds, _estimator(inputs, energy, center, restarts, seed),
+                             io.read(baseline) if baseline else None,
+                             progress=lambda i, n: _err(f"fold {i}/{n}"))
+        if out and out.endswith(".nc"):
+            res.to_netcdf(out, engine="h5netcdf")
+        else:
+            text = mse_table(res).to_csv(index=False, float_format="%.6g")
+            Path(out).write_text(text) if out and out != "-" else sys.stdout.write(text)
+        if plot:
+            from ..dddas import plots
+
+            plots.cv_errors(res, plot)
+        _err(f"cross-validation of {res.sizes['case']} cases in {res.attrs['seconds']:.2f} s")
+
+    @dd.command()
+    def predict(
+        model: Path = typer.Argument(..., help="Model file from 'dddas fit'."),
+        at: List[str] = typer.Option([], "--at", help="Condition NAME=VALUE (repeat for several inputs)."),
+        out: Optional[str] = typer.Option(None, "--out", "-o", help="Output .nc/.zarr/.csv [default: CSV on stdout]."),
+        plot: Optional[Path] = typer.Option(None, help="Figure with +-2 std bands (.png)."),
+    ):
+        """Predicted force series (Fx, Fz in N) with standard deviations at a condition."""
+        from .. import io
+        from ..dddas import Surrogate
+
+        sur = Surrogate.load(model)
+        pred = sur.predict(_conditions(at))
+        io.emit(pred, out)
+        if plot:
+            from ..dddas import plots
+
+            plots.prediction(pred, plot, title=f"surrogate at {_conditions(at)}")
+
+    @dd.command()
+    def assimilate(
+        model: Path = typer.Argument(..., help="Model file from 'dddas fit'."),
+        obs: str = typer.Option(..., "--obs", help="Observations: CSV (theta_deg or time_s, Fx_N and/or Fz_N; empty = missing), .nc, or '-' to stream CSV lines on standard input."),
+        at: List[str] = typer.Option([], "--at", help="Condition NAME=VALUE."),
+        obs_std_n: float = typer.Option(0.1, "--obs-std-N", help="Sensor noise standard deviation, N."),
+        method: Method = typer.Option(Method.pf, help="pf: particle filter; exact: Gaussian posterior."),
+        particles: int = typer.Option(5000, help="Number of particles."),
+        resample: Resampler = typer.Option(Resampler.systematic, help="Resampling scheme."),
+        jitter: float = typer.Option(0.1, help="Liu-West jitter bandwidth in [0, 1)."),
+        prior_floor: float = typer.Option(0.0, help="Prior std floor as a fraction of the training coefficients' spread."),
+        seed: int = typer.Option(0, help="Random seed."),
+        out: Optional[str] = typer.Option(None, "--out", "-o", help="Posterior series .nc/.zarr/.csv [default: CSV on stdout]."),
+        plot: Optional[Path] = typer.Option(None, help="Figure of prior, observations and posterior (.png)."),
+    ):
+        """Correct the surrogate's prediction with noisy force samples (file or stream)."""
+        from .. import io
+        from ..dddas import Surrogate
+        from ..dddas.online import Assimilation, read_observations, stream_csv
+
+        sur = Surrogate.load(model)
+        opts = dict(n_particles=particles, resample=resample.value, jitter=jitter, rng=seed) if method.value == "pf" else {}
+        a = Assimilation(sur, _conditions(at), obs_std_n, method.value, prior_floor=prior_floor, **opts)
+        prior = a.prediction()
+        observations = None
+        if obs == "-":
+            n = stream_csv(a, sys.stdin, every=100, report=lambda i, e: _err(f"{i} samples, ESS {e:.0f}"))
+        else:
+            from ..dddas.online import observations_arrays
+
+            observations = read_observations(obs)
+            v, comps = observations_arrays(observations, sur.coord_)
+            for i in range(len(v)):
+                a.update(v[i], *(float(comps[c][i]) if c in comps else None for c in ("Fx", "Fz")))
+            n = len(v)
+        post = a.prediction()
+        io.emit(post, out)
+        if plot:
+            from ..dddas import plots
+
+            plots.prediction(post, plot, observations=observations, prior=prior,
+                             title=f"{method.value} posterior after {n} samples")
+        _err(f"assimilated {n} samples ({method.value})")
+
+    @dd.command()
+    def study(
+        which: Study = typer.Argument(..., help="legs: three legs across ten conditions; foot: human-sized foot."),
+        out: Path = typer.Option(Path("results/dddas"), "--out", "-o", help="Output folder."),
+        data: List[str] = typer.Option([], "--data", help="legs: LEG=FILE stacked dataset (e.g. SPH at ten speeds); default RFT stand-in."),
+        trial: Optional[Path] = typer.Option(None, help="foot: trial CSV [default: a synthetic trial]."),
+        particles: int = typer.Option(5000, help="Number of particles."),
+        seed: int = typer.Option(0, help="Random seed."),
+    ):
+        """Run a DDDAS study: datasets, figures and summary.json in --out."""
+        from ..dddas import studies
+        from ..errors import InputError
+
+        if which.value == "legs":
+            d = {}
+            for item in data:
+                if "=" not in item:
+                    raise InputError("data", f"expected LEG=FILE, got {item!r}")
+                k, v = item.split("=", 1)
+                d[k] = v
+            s = studies.legs_study(out, d, particles=particles, seed=seed, progress=_err)
+        else:
+            s = studies.foot_study(out, trial=trial, particles=particles, seed=seed, progress=_err)
+        sys.stdout.write(json.dumps(s, indent=2, default=float) + "\n")
