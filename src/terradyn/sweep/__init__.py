@@ -8,7 +8,7 @@ process pool or a Dask cluster into a resumable store, collected into one labell
 
 See ``docs/sweep.md`` for the TOML format and the store layout.
 """
-from .run import SCHEDULER_ENV, Summary, run, run_case, simulate_case
+from .execute import SCHEDULER_ENV, Summary, run, run_case, simulate_case
 from .spec import Case, SweepSpec, build, case_id, expand, from_dict, load, parse, resolve
 from .store import Store, collect, status
 

@@ -21,6 +21,8 @@ from .spec import SweepSpec, build, load
 
 #: Environment variable naming the Dask scheduler (``tcp://host:8786``) when --scheduler is not given.
 SCHEDULER_ENV = "TERRADYN_DASK_SCHEDULER"
+#: How long to wait for the Dask scheduler to answer.
+CONNECT_TIMEOUT = "20s"
 THREAD_VARS = ("NUMBA_NUM_THREADS", "OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS")
 
 
@@ -159,7 +161,7 @@ def _dask(todo, address: str, retries: int):
     except ImportError:  # pragma: no cover - a dependency
         raise InputError("scheduler", "Dask execution needs dask[distributed] installed") from None
     try:
-        client = Client(address, timeout="20s")
+        client = Client(address, timeout=CONNECT_TIMEOUT)
     except (OSError, TimeoutError) as e:
         raise InputError("scheduler", f"cannot reach the Dask scheduler at {address!r} ({e})") from None
     try:
@@ -240,6 +242,7 @@ def run(spec: SweepSpec | str | Path, store: str | Path | None = None, *, worker
         for cid, ds, e in stream:
             n += 1
             if e is None:
+                ds.attrs["sweep_run"] = run_id
                 st.write_case(cid, ds)
                 summary.done += 1
                 st.log("case-done", run=run_id, case=cid, host=ds.attrs.get("sweep_host"),
