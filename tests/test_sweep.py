@@ -362,3 +362,43 @@ def test_driver_killed_mid_sweep_then_rerun_loses_nothing_and_repeats_nothing(tm
     ds = sw.collect(store)
     for i in (0, n // 2, n - 1):
         np.testing.assert_array_equal(ds.Fz.isel(case=i).values, direct(spec.cases[i].params).Fz.values)
+
+
+SPH_TINY = """
+[sweep]
+model = "sph"
+[leg]
+shape = "flat"
+[motion]
+omega_rad_s = 2.0
+theta_start_deg = -50
+theta_end_deg = -40
+n_theta = 6
+[model]
+medium = "3 mm glass CP"
+quick = true
+dx_mm = 6
+"""
+
+
+def test_sph_case_through_the_sweep_is_the_direct_simulation(tmp_path):
+    sph = pytest.importorskip("terradyn.sph")
+    spec = sw.parse(SPH_TINY)
+    (c,) = spec.cases
+    assert c.params["model"]["dx_mm"] == 6.0 and c.params["model"]["hdx"] == sph.SPHConfig().hdx
+    s = sw.run(spec, tmp_path / "sph.sweep", workers=0)
+    assert (s.done, s.failed) == (1, {})
+    got = sw.Store(tmp_path / "sph.sweep").read_case(c.id)
+    leg, motion = sw.build(c.params)
+    ref = sph.simulate(leg, motion, "3 mm glass CP", quick=True, config=sph.SPHConfig(dx=6e-3))
+    assert got.attrs["model"] == "sph" and np.abs(got.Fz.values).max() > 0.1
+    np.testing.assert_allclose(got.Fz.values, ref.Fz.values, rtol=1e-6, atol=1e-9)
+    np.testing.assert_allclose(got.Fx.values, ref.Fx.values, rtol=1e-6, atol=1e-9)
+
+
+def test_sph_options_are_checked_at_plan_time():
+    pytest.importorskip("terradyn.sph")
+    with pytest.raises(InputError, match="model.dx_mm"):
+        sw.parse(SPH_TINY.replace("dx_mm = 6", "dx_mm = -1"))
+    with pytest.raises(InputError, match="model.zeta"):
+        sw.parse(SPH_TINY.replace("dx_mm = 6", "zeta = 1"))

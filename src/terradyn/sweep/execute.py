@@ -78,10 +78,18 @@ def simulate_case(params: dict):
         return simulate(leg, motion, _stress_model(key), medium=m["medium"])
     if m["name"] == "sph":
         sph = _sph_module()
-        opts = dict(m.get("options", {}))
-        if "resolution" in m:
-            opts["resolution"] = m["resolution"]
-        return sph.simulate(leg, motion, material=m["medium"], quick=m["quick"], seed=m["seed"], **opts)
+        from ..units import CM
+
+        kw = {k: m[k] for k in ("hdx", "cfl", "av_alpha", "av_beta", "wall_layers", "noslip")}
+        if "settle_time_s" in m:
+            kw["settle_time"] = m["settle_time_s"]
+        if "lowpass_hz" in m:
+            kw["lowpass_hz"] = m["lowpass_hz"]
+        cfg = sph.SPHConfig(dx=m["dx_mm"] * 1e-3, **kw)
+        return sph.simulate(leg, motion, m["medium"], quick=m["quick"], config=cfg,
+                            thickness=m["thickness_cm"] * CM,
+                            bed_width=m["bed_width_cm"] * CM if "bed_width_cm" in m else None,
+                            bed_depth=m["bed_depth_cm"] * CM if "bed_depth_cm" in m else None)
     raise InputError("sweep.model", f"unknown model {m['name']!r}")
 
 

@@ -15,7 +15,9 @@ A spec names the model, the base parameters and the parameters to vary::
     max_deg = 3.0                    # kind = "foot": max_deg, n_theta, omega_rad_s
 
     [model]                          # rft: medium, alpha (fit|generic|table), zeta, interp
-    medium = "poppy LP"              # sph: medium, quick, resolution, seed, [model.options]
+    medium = "poppy LP"              # sph: medium, quick, dx_mm, hdx, cfl, av_alpha, av_beta,
+                                     #   wall_layers, noslip, settle_time_s, lowpass_hz,
+                                     #   thickness_cm, bed_width_cm, bed_depth_cm
 
     [grid]                           # Cartesian product of every list here
     leg.length_cm = {start = 25, stop = 35, step = 1}
@@ -61,7 +63,9 @@ MOTION_KEYS = {
 }
 MODEL_KEYS = {
     "rft": {"medium": str, "alpha": str, "zeta": float, "interp": str},
-    "sph": {"medium": str, "quick": bool, "resolution": float, "seed": int, "options": dict},
+    "sph": {"medium": str, "quick": bool, "dx_mm": float, "hdx": float, "cfl": float, "av_alpha": float,
+            "av_beta": float, "wall_layers": int, "noslip": bool, "settle_time_s": float,
+            "lowpass_hz": float, "thickness_cm": float, "bed_width_cm": float, "bed_depth_cm": float},
 }
 ID_LENGTH = 12
 
@@ -177,7 +181,7 @@ def _is_range(v) -> bool:
 def _flatten(d: dict, prefix: str, path: str = ""):
     for k, v in d.items():
         p = f"{path}.{k}" if path else k
-        if isinstance(v, dict) and not _is_range(v) and not p.endswith("model.options"):
+        if isinstance(v, dict) and not _is_range(v):
             yield from _flatten(v, prefix, p)
         else:
             yield p, v
@@ -233,8 +237,7 @@ def _check_type(key: str, v, typ, allowed: dict) -> None:
         raise InputError(key, f"must be {_TYPE_NAMES[typ]}, got {v!r}")
 
 
-_TYPE_NAMES = {float: "a number", int: "an integer", str: "a string", bool: "true or false",
-               dict: "a table"}
+_TYPE_NAMES = {float: "a number", int: "an integer", str: "a string", bool: "true or false"}
 
 
 def _canon(x: float) -> float:
@@ -349,13 +352,52 @@ def resolve(model: str, raw: dict) -> dict:
             raise InputError("model.interp", "only applies with alpha = 'table'")
         _stress_model(json.dumps(model_r, sort_keys=True))  # validates medium, zeta, interp
     else:
-        model_r = {"name": "sph", "medium": medium, "quick": bool(opts.get("quick", False)),
-                   "seed": int(opts.get("seed", 0))}
-        if "resolution" in opts:
-            model_r["resolution"] = opts["resolution"]
-        if opts.get("options"):
-            model_r["options"] = json.loads(json.dumps(opts["options"], sort_keys=True))
+        model_r = _resolve_sph(opts)
     return {"leg": leg_r, "motion": motion_r, "model": model_r}
+
+
+def _resolve_sph(opts: dict) -> dict:
+    """SPH options with the solver's defaults filled in (terradyn.sph.SPHConfig)."""
+    import importlib.util
+
+    from .. import media
+
+    if importlib.util.find_spec("terradyn.sph") is None:
+        raise InputError("sweep.model", "'sph' needs terradyn.sph, which this installation does not have")
+    from ..sph import FULL_DX, QUICK_DX, SPHConfig
+    from ..sph.scenes import LEG_THICKNESS
+
+    medium = opts["medium"]
+    if medium not in media.MEDIA:
+        raise InputError("model.medium", f"unknown medium {medium!r}; allowed: {', '.join(media.MEDIA)}")
+    quick = bool(opts.get("quick", False))
+    dx = opts.get("dx_mm", (QUICK_DX if quick else FULL_DX) * 1e3) * 1e-3
+    kw = {k: opts[k] for k in ("hdx", "cfl", "av_alpha", "av_beta", "wall_layers", "noslip") if k in opts}
+    if "settle_time_s" in opts:
+        kw["settle_time"] = opts["settle_time_s"]
+    if "lowpass_hz" in opts:
+        kw["lowpass_hz"] = opts["lowpass_hz"]
+    try:
+        cfg = SPHConfig(dx=dx, **kw)
+    except InputError as e:
+        f = {"dx": "dx_mm", "settle-time": "settle_time_s", "lowpass": "lowpass_hz"}.get(
+            e.field, e.field.replace("-", "_"))
+        raise InputError(f"model.{f}", str(e).split(": ", 1)[-1]) from None
+    for k in ("thickness_cm", "bed_width_cm", "bed_depth_cm"):
+        if k in opts and not opts[k] > 0:
+            raise InputError(f"model.{k}", f"must be > 0 cm, got {opts[k]!r}")
+    out = {"name": "sph", "medium": medium, "quick": quick, "dx_mm": _canon(cfg.dx * 1e3), "hdx": _canon(cfg.hdx),
+           "cfl": _canon(cfg.cfl), "av_alpha": _canon(cfg.av_alpha), "av_beta": _canon(cfg.av_beta),
+           "wall_layers": int(cfg.wall_layers), "noslip": bool(cfg.noslip),
+           "thickness_cm": _canon(opts.get("thickness_cm", LEG_THICKNESS / CM))}
+    if cfg.settle_time is not None:
+        out["settle_time_s"] = _canon(cfg.settle_time)
+    if cfg.lowpass_hz is not None:
+        out["lowpass_hz"] = _canon(cfg.lowpass_hz)
+    for k in ("bed_width_cm", "bed_depth_cm"):
+        if k in opts:
+            out[k] = opts[k]
+    return out
 
 
 _FIELD_ALIASES = {"length": "length_cm", "width": "width_cm", "elements": "elements",
