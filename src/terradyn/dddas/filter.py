@@ -34,8 +34,8 @@ BACKENDS = ("numba", "numpy")
 # and the random numbers are written out so they vectorise too (libm calls do not):
 #   exp(x) = 2^n 2^f (f in [0, 1), 2^f a degree-6 polynomial, rel. error ~1e-7);
 #   log(v) = e ln 2 + log(m) (m in [1, 2), degree-8 polynomial, abs. error ~1e-7);
-#   uniforms from the PCG hash of a counter (Jarzynski & Olano, JCGT 2020), seeded per call
-#   from the caller's np.random.Generator (so runs are reproducible and independent).
+#   uniforms from an integer hash (lowbias32) of a counter, seeded per call from the
+#   caller's np.random.Generator (so runs are reproducible and independent).
 def _poly(fn, lo, hi, deg):
     x = 0.5 * (lo + hi) + 0.5 * (hi - lo) * np.cos(np.pi * (np.arange(8 * deg) + 0.5) / (8 * deg))
     return tuple(np.float32(c) for c in np.polyfit(x - lo, fn(x), deg))
@@ -47,14 +47,7 @@ _LOG2E = np.float32(1.4426950408889634)
 _LN2 = np.float32(0.6931471805599453)
 
 
-@njit(inline="always", fastmath=True)
-def _exp2_parts(v):  # pragma: no cover - compiled
-    t = v * _LOG2E
-    t = t if t > np.float32(-126.0) else np.float32(-126.0)
-    n = math.floor(t)
-    f = t - n
-    e0, e1, e2, e3, e4, e5, e6 = _E
-    return ((((((e0 * f + e1) * f + e2) * f + e3) * f + e4) * f + e5) * f + e6), np.int32(n)
+_RENORM = -30.0  # shift the log-weights back to max 0 when their max falls below this
 
 
 @njit(inline="always")
@@ -68,23 +61,24 @@ def _hash32(x):  # pragma: no cover - compiled
     return np.uint32(x ^ (x >> np.uint32(16)))
 
 
-@njit(fastmath=True, nogil=True, cache=True)
-def _uniforms(n, seed, out_i):  # pragma: no cover - compiled
-    """Fill out_i[:n] with the bits of float32 uniforms in [1, 2) (read them through a
-    float32 view): hash of the counter i + seed."""
-    for i in range(n):
-        r = _hash32(np.uint32(np.uint32(i) + seed))
-        out_i[i] = np.int32(np.uint32(0x3F800000) | np.uint32(r >> np.uint32(9)))
+@njit(inline="always")
+def _u01(i, seed):  # pragma: no cover - compiled
+    """float32 uniform in [0, 1) from the hash of counter i + seed (24 random bits)."""
+    r = _hash32(np.uint32(np.uint32(i) + seed))
+    return np.float32(np.int32(r >> np.uint32(8))) * np.float32(5.960464477539063e-08)
 
 
 # Workspace layout: float32 array of 8 blocks of N + 1 (with an int32 view of it):
-# 0 log-weights, 1 predictions, 2 weights (int view: exponent bits), 3 exponents (int),
-# 4-7 scratch for resampling. float64 workspace of 2 N (with an int64 view): cumulative
-# weights [0, N), ancestors [N, 2 N) (int view).
+# 0 log-weights, 1 predictions, 2 weights, 3 unused, 4-7 scratch for multinomial
+# resampling. float64 workspace of 2 N (with an int64 view): cumulative weights [0, N),
+# ancestors [N, 2 N) (int view).
 @njit(fastmath=True, nogil=True, cache=True)
 def _nb_update(Ct, h, off, y, half_inv_var, ws, wsi):  # pragma: no cover - compiled
-    """logw += log N(y; h @ C + off, sigma^2), shifted so max(logw) = 0; w = exp(logw).
-    Ct (D, N) float32; h (D,) float32. Returns the ESS = (sum w)^2 / sum w^2."""
+    """logw += log N(y; h @ C + off, sigma^2); w = exp(logw). The log-weights are shifted
+    back to max 0 only when their max drops below _RENORM (the ESS does not depend on the
+    shift). Ct (D, N) float32; h (D,) float32. Returns the ESS = (sum w)^2 / sum w^2.
+    exp(v) = 2^n 2^f: the polynomial 2^f in [1, 2) goes to the weights, n to the exponent
+    bits in a second pass through the int32 view (each loop vectorises)."""
     D, N = Ct.shape
     K = N + 1
     logw = ws[0:N]
@@ -93,9 +87,10 @@ def _nb_update(Ct, h, off, y, half_inv_var, ws, wsi):  # pragma: no cover - comp
     wint = wsi[2 * K:2 * K + N]
     nbuf = wsi[3 * K:3 * K + N]
     o = np.float32(off)
+    h0 = h[0]
     for i in range(N):
-        pred[i] = o
-    for d in range(D):
+        pred[i] = o + Ct[0, i] * h0
+    for d in range(1, D):
         hd = h[d]
         for i in range(N):
             pred[i] += Ct[d, i] * hd
@@ -106,15 +101,20 @@ def _nb_update(Ct, h, off, y, half_inv_var, ws, wsi):  # pragma: no cover - comp
         r = yy - pred[i]
         v = logw[i] - hv * r * r
         logw[i] = v
-        m = v if v > m else m
+        m = max(m, v)
+    shift = m if m < _RENORM else np.float32(0.0)
+    e0, e1, e2, e3, e4, e5, e6 = _E
     for i in range(N):
-        v = logw[i] - m
+        v = logw[i] - shift
         logw[i] = v
-        p, n = _exp2_parts(v)
-        wbuf[i] = p
-        nbuf[i] = n
+        t = v * _LOG2E + np.float32(127.0)          # biased exponent, clamped to normals
+        t = t if t > np.float32(1.0) else np.float32(1.0)
+        n = np.int32(t)                              # t > 0: truncation is floor
+        fr = t - np.float32(n)
+        wbuf[i] = ((((((e0 * fr + e1) * fr + e2) * fr + e3) * fr + e4) * fr + e5) * fr + e6)
+        nbuf[i] = (n - np.int32(127)) << np.int32(23)
     for i in range(N):
-        wint[i] += nbuf[i] << 23
+        wint[i] += nbuf[i]
     s = 0.0
     s2 = 0.0
     for i in range(N):
@@ -126,14 +126,13 @@ def _nb_update(Ct, h, off, y, half_inv_var, ws, wsi):  # pragma: no cover - comp
 
 @njit(fastmath=True, nogil=True, cache=True)
 def _nb_resample(Ct, out, ws, wsi, w64, w64i, systematic, seed, jitter):  # pragma: no cover
-    """Resample the columns of Ct (D, N) by the weights in the workspace (set by _nb_update),
-    jitter them (Liu-West, uniform noise), and reset the log-weights. ``seed``: uint32 from
-    the caller's Generator; out (D, N) float32 scratch."""
+    """Resample the columns of Ct (D, N) by the weights in the workspace (set by
+    _nb_update), jitter them (Liu-West, uniform noise), and reset the log-weights.
+    ``seed``: uint32 from the caller's Generator; out (D, N) float32 scratch."""
     D, N = Ct.shape
     K = N + 1
     logw = ws[0:N]
     wbuf = ws[2 * K:2 * K + N]
-    ubuf, uint = ws[4 * K:5 * K], wsi[4 * K:5 * K]
     vbuf, vint = ws[5 * K:6 * K], wsi[5 * K:6 * K]
     ebuf = ws[6 * K:7 * K]
     mbuf, mint = ws[7 * K:8 * K], wsi[7 * K:8 * K]
@@ -145,30 +144,29 @@ def _nb_resample(Ct, out, ws, wsi, w64, w64i, systematic, seed, jitter):  # prag
         cw[i] = s
     j = 0
     if systematic:
-        _uniforms(1, seed, uint)
-        u0 = np.float64(ubuf[0]) - 1.0
+        u0 = np.float64(_u01(0, seed))
+        step = s / N
         for i in range(N):
-            t = (i + u0) / N * s
+            t = (i + u0) * step
             while j < N - 1 and cw[j] < t:
                 j += 1
             anc[i] = j
     else:
         # Sorted uniforms as normalised partial sums of N + 1 exponentials: O(N), no sort.
-        _uniforms(K, seed, uint)
         for i in range(K):
-            vbuf[i] = np.float32(2.0) - ubuf[i]  # uniform in (0, 1]
+            vbuf[i] = np.float32(1.0) - _u01(i, seed)  # uniform in (0, 1]
         for i in range(K):
             b = vint[i]
             ebuf[i] = np.float32((b >> 23) - 127)
             mint[i] = (b & np.int32(0x007FFFFF)) | np.int32(0x3F800000)
         l0, l1, l2, l3, l4, l5, l6, l7, l8 = _L
+        tot = 0.0
         for i in range(K):
             x = mbuf[i] - np.float32(1.0)
             lg = ((((((((l0 * x + l1) * x + l2) * x + l3) * x + l4) * x + l5) * x + l6) * x + l7) * x + l8)
-            vbuf[i] = -(ebuf[i] * _LN2 + lg)  # an Exp(1) sample
-        tot = 0.0
-        for i in range(K):
-            tot += vbuf[i]
+            e = -(ebuf[i] * _LN2 + lg)  # an Exp(1) sample
+            vbuf[i] = e
+            tot += e
         scale = s / tot
         acc = 0.0
         for i in range(N):
@@ -183,20 +181,21 @@ def _nb_resample(Ct, out, ws, wsi, w64, w64i, systematic, seed, jitter):  # prag
     if jitter > 0.0:
         a = np.float32(math.sqrt(1.0 - jitter * jitter))
         for d in range(D):
-            mu = 0.0
+            x0 = out[d, 0]
+            s1 = 0.0
+            sq = 0.0
             for i in range(N):
-                mu += out[d, i]
-            mu /= N
-            var = 0.0
+                x = np.float64(out[d, i] - x0)  # shifted sums: no cancellation
+                s1 += x
+                sq += x * x
+            mu = s1 / N
+            var = max(sq / N - mu * mu, 0.0)
+            # u uniform in [0, 1): mean 1/2, variance 1/12.
+            amp = np.float32(jitter * math.sqrt(var) * math.sqrt(12.0))
+            c0 = np.float32((1.0 - a) * (mu + x0)) - amp * np.float32(0.5)
+            sd = np.uint32(seed + np.uint32(np.uint32(d + 1) * np.uint32(0x9E3779B9)))
             for i in range(N):
-                x = out[d, i] - mu
-                var += x * x
-            # ubuf holds uniforms in [1, 2): mean 1.5, variance 1/12.
-            amp = np.float32(jitter * math.sqrt(var / N) * math.sqrt(12.0))
-            c0 = np.float32((1.0 - a) * mu) - amp * np.float32(1.5)
-            _uniforms(N, np.uint32(seed + np.uint32(np.uint32(d + 1) * np.uint32(0x9E3779B9))), uint)
-            for i in range(N):
-                Ct[d, i] = a * out[d, i] + c0 + amp * ubuf[i]
+                Ct[d, i] = a * out[d, i] + c0 + amp * _u01(i, sd)
     else:
         for d in range(D):
             for i in range(N):
