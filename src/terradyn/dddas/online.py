@@ -70,17 +70,31 @@ class Assimilation:
             self.post = GaussianPosterior(self.prior_mean, np.diag(self.prior_std ** 2))
         self.model_error = bool(model_error)
         self._rows: dict[tuple[str, float], tuple[np.ndarray, float, float]] = {}
+        self._grid: dict[str, tuple[np.ndarray, np.ndarray, np.ndarray]] = {}
+        self._index = {float(v): k for k, v in enumerate(surrogate.coord_values_)}
         self.n_samples = 0
 
     def _row(self, component: str, value: float):
-        # Observation rows are computed lazily and cached: a sensor usually revisits grid points.
+        # Observation rows are computed lazily and cached: per grid point from one
+        # vectorised call for the whole grid, off-grid values one by one.
         key = (component, value)
         r = self._rows.get(key)
         if r is None:
-            H, off, err = self.surrogate.observation_rows(value, component, with_error=True)
-            s = self.obs_std[component]
-            sigma = math.sqrt(s * s + float(err[0]) ** 2) if self.model_error else s
-            r = (H[0], float(off[0]), sigma)
+            grid = self._grid.get(component)
+            if grid is None:
+                sur = self.surrogate
+                H, off, err = sur.observation_rows(sur.coord_values_, component, with_error=True)
+                s = self.obs_std[component]
+                sig = np.sqrt(s * s + err ** 2) if self.model_error else np.full(len(off), s)
+                grid = self._grid[component] = (H, off, sig)
+            k = self._index.get(value)
+            if k is not None:
+                r = (grid[0][k], float(grid[1][k]), float(grid[2][k]))
+            else:
+                H, off, err = self.surrogate.observation_rows(value, component, with_error=True)
+                s = self.obs_std[component]
+                sigma = math.sqrt(s * s + float(err[0]) ** 2) if self.model_error else s
+                r = (H[0], float(off[0]), sigma)
             if len(self._rows) < 100_000:
                 self._rows[key] = r
         return r
