@@ -260,10 +260,13 @@ def velocity_gradient(srt, srtk, cell_index, h, xmin, zmin, inv_cell, ncx, ncz, 
 
 
 @numba.njit(parallel=True, fastmath=True, cache=True)
-def accelerations(srt, srtk, cell_index, mass, h, c0, av_alpha, av_beta, gx, gz, hip_x, hip_z,
-                  xmin, zmin, inv_cell, ncx, ncz, cell_start, ax, az, fleg):
+def accelerations(srt, srtk, cell_index, mass, h, c0, av_alpha, av_beta, av_boundary, gx, gz,
+                  hip_x, hip_z, xmin, zmin, inv_cell, ncx, ncz, cell_start, ax, az, fleg):
     """Second pass (stresses): acceleration of every granular particle and the force it exerts
-    on the leg (fleg[i] = (Fx, Fz, torque about (hip_x, hip_z)), per unit depth)."""
+    on the leg (fleg[i] = (Fx, Fz, torque about (hip_x, hip_z)), per unit depth). Artificial
+    viscosity acts between granular particles, and on wall/leg pairs only if ``av_boundary``:
+    its stress ~ alpha rho c v scales with the (numerical) sound speed and would add a drag
+    proportional to the leg speed that the material does not have."""
     h2 = h * h
     sup2 = 4.0 * h2
     dwc = -5.0 * _W2D / (h2 * h2)
@@ -324,7 +327,7 @@ def accelerations(srt, srtk, cell_index, mass, h, c0, av_alpha, av_beta, gx, gz,
                 rhoj = RHO[j]
                 mj = VOL[j] * rhoj
                 pi_ij = 0.0
-                if vdotr < 0.0:
+                if vdotr < 0.0 and (kj == SOIL or av_boundary):
                     mu = h * vdotr / (r2 + 0.01 * h2)
                     pi_ij = (-av_alpha * c0 * mu + av_beta * mu * mu) / (0.5 * (rhoi + rhoj))
                 txx = pxx + PXX[j] - pi_ij
@@ -401,7 +404,7 @@ def update_stress(rho, sxx, szz, sxz, syy, sidx, drho, lxx, lxz, lzx, lzz, dt, s
         sxz[i] = s_xz
 
 
-@numba.njit(parallel=True, fastmath=True, cache=True)
+@numba.njit(parallel=True, cache=True)  # no fastmath: it would assume away the NaN checks
 def kick_drift(x, z, vx, vz, rho, sxx, szz, sidx, ax, az, dt, damping, vmax_allowed, bad):
     """v += dt a (optionally damped), x += dt v for the granular particles ``sidx``. Returns the
     number of particles that went non-finite or faster than ``vmax_allowed`` (``bad`` flags)."""

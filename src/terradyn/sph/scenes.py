@@ -27,17 +27,23 @@ def lattice(x0: float, x1: float, z0: float, z1: float, dx: float) -> tuple[np.n
     """Square lattice of spacing dx in [x0, x1] x [z0, z1], anchored at the top (z1) and
     centred in x (so a free surface at z1 is exact); (M,) x and z."""
     nx = max(int(round((x1 - x0) / dx)), 1)
-    nz = max(int(math.ceil((z1 - z0) / dx - 1e-6)), 1)
+    nz = max(int(round((z1 - z0) / dx)), 1)
     xs = 0.5 * (x0 + x1) + (np.arange(nx) - 0.5 * (nx - 1)) * dx
     zs = z1 - (np.arange(nz) + 0.5) * dx
     X, Z = np.meshgrid(xs, zs)
     return X.ravel(), Z.ravel()
 
 
+def snap(length: float, dx: float) -> float:
+    """``length`` rounded to a whole number of particle spacings (>= 1)."""
+    return max(int(round(length / dx)), 1) * dx
+
+
 def container_walls(x0: float, x1: float, z_bottom: float, z_top: float, dx: float, layers: int,
                     left: bool = True, right: bool = True, x_floor_end: float | None = None):
     """Dummy particles of a floor below ``z_bottom`` and side walls at x0 (left) and x1 (right)
-    reaching up to ``z_top``; (M,) x and z."""
+    reaching up to ``z_top``; (M,) x and z. x1 - x0 must be a whole number of spacings."""
+    z_top = z_bottom + snap(z_top - z_bottom, dx)
     xe = x1 if x_floor_end is None else x_floor_end
     fx0 = x0 - (layers * dx if left else 0.0)
     fx1 = xe + (layers * dx if right else 0.0)
@@ -88,6 +94,7 @@ def bed_scene(width: float = 0.2, depth: float = 0.1, dx: float = 5e-3,
     mat = _material(medium)
     cfg = config or SPHConfig(dx=dx, **cfg_kw)
     dx = cfg.dx
+    width, depth = snap(width, dx), snap(depth, dx)
     sx, sz = lattice(-width / 2, width / 2, -depth, 0.0, dx)
     wx, wz = container_walls(-width / 2, width / 2, -depth, 0.5 * depth, dx, cfg.wall_layers)
     p = _assemble([(sx, sz, SOIL), (wx, wz, WALL)], mat, dx)
@@ -105,9 +112,10 @@ def column_scene(aspect: float, base: float = 0.05, dx: float = 2.5e-3,
     mat = _material(medium)
     cfg = config or SPHConfig(dx=dx, **cfg_kw)
     dx = cfg.dx
-    H = a * base
+    base = snap(base, dx)
+    H = snap(a * base, dx)
     sx, sz = lattice(0.0, base, 0.0, H, dx)
-    run = base * (3.0 + 2.5 * a)
+    run = snap(base * (3.0 + 2.5 * a), dx)
     wx, wz = container_walls(0.0, run, 0.0, H + 4 * dx, dx, cfg.wall_layers, right=False,
                              x_floor_end=run)
     p = _assemble([(sx, sz, SOIL), (wx, wz, WALL)], mat, dx)
@@ -184,6 +192,7 @@ def leg_scene(leg: Leg, traj: Trajectory, i0: int, medium: str | GranularMateria
     cfg = config or SPHConfig(**cfg_kw)
     dx = cfg.dx
     xc = float(np.mean(traj.hip_x))
+    bed_width, bed_depth = snap(bed_width, dx), snap(bed_depth, dx)
     bx, bz, bnx, bnz, dcl = leg_particles(leg, dx, thickness, cfg.wall_layers)
     sx, sz = lattice(xc - bed_width / 2, xc + bed_width / 2, -bed_depth, 0.0, dx)
     # remove material inside the leg's body at the start pose

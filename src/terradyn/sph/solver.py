@@ -37,9 +37,10 @@ class SPHInstabilityError(RuntimeError):
 @dataclass(frozen=True)
 class SPHConfig:
     """Numerical parameters. dx: particle spacing (m); hdx: smoothing length / dx (Wendland C2,
-    support 2h); cfl: Courant number; av_alpha, av_beta: Monaghan artificial viscosity;
+    support 2h); cfl: Courant number; av_alpha, av_beta: Monaghan artificial viscosity (between granular particles; also on
+    wall/leg pairs if av_boundary);
     wall_layers: layers of dummy particles; noslip: no-slip (True) or free-slip walls and leg;
-    settle_time: damped settling before the motion starts (s; None: 40 bed-depth / sound-speed
+    settle_time: damped settling before the motion starts (s; None: 15 bed-depth / sound-speed
     transits); lowpass_hz: optional zero-phase Butterworth low-pass of the recorded forces
     (None: raw)."""
 
@@ -48,6 +49,7 @@ class SPHConfig:
     cfl: float = 0.2
     av_alpha: float = 0.1
     av_beta: float = 0.0
+    av_boundary: bool = False
     wall_layers: int = 3
     noslip: bool = True
     settle_time: float | None = None
@@ -190,7 +192,7 @@ class Solver:
         self.step_count = 0
         self._grid()
         st = cfg.settle_time
-        self.settle_time = st if st is not None else 40.0 * scene.depth_scale / self.c0
+        self.settle_time = st if st is not None else 15.0 * scene.depth_scale / self.c0
         self.settle_damping = 2.0 * self.c0 / max(scene.depth_scale, 1e-6)
         if cfg.threads:
             import numba
@@ -268,7 +270,8 @@ class Solver:
                  self.mass, self.kind, self.nox, self.noz, self.dcl, self.sxx, self.szz, self.sxz,
                  self._srt, self._srtk)
         K.accelerations(self._srt, self._srtk, self.cell_index, self.mass, self.h, self.c0,
-                        cfg.av_alpha, cfg.av_beta, gx, gz, hip_x, hip_z, *grid[:6], self.ax,
+                        cfg.av_alpha, cfg.av_beta, cfg.av_boundary, gx, gz, hip_x, hip_z,
+                        *grid[:6], self.ax,
                         self.az, self.fleg)
         damping = self.settle_damping if self.settling else 0.0
         nbad = K.kick_drift(self.x, self.z, self.vx, self.vz, self.rho, self.sxx, self.szz,

@@ -1,0 +1,216 @@
+"""``terradyn sph``: the SPH granular-bed model and its validation scenes."""
+from __future__ import annotations
+
+import json
+from contextlib import contextmanager
+from enum import Enum
+from pathlib import Path
+from typing import Optional
+
+import typer
+
+from ..geometry import LEG_SHAPES
+
+Leg = Enum("Leg", {s: s for s in LEG_SHAPES}, type=str)
+
+sph_app = typer.Typer(help="SPH (Drucker-Prager granular bed) forces and validation scenes.",
+                      no_args_is_help=True)
+
+_QUICK = typer.Option(False, "--quick", help="Coarse resolution (4 mm particles) for tests and previews.")
+_DX = typer.Option(None, "--dx-mm", help="Particle spacing, mm [default: 2.5; --quick 4].")
+_MEDIUM = typer.Option("3 mm glass CP", help="Medium (Li 2013 Table S1 name), e.g. '3 mm glass CP', 'poppy LP'.")
+
+
+@contextmanager
+def _progress(label: str):
+    """A rich progress bar on stderr; yields a callback(done_s, total_s)."""
+    from rich.console import Console
+    from rich.progress import BarColumn, Progress, TextColumn, TimeElapsedColumn, TimeRemainingColumn
+
+    with Progress(TextColumn("{task.description}"), BarColumn(), TextColumn("{task.percentage:>5.1f}%"),
+                  TimeElapsedColumn(), TimeRemainingColumn(), console=Console(stderr=True),
+                  transient=False) as prog:
+        task = prog.add_task(label, total=1.0)
+
+        def cb(done, total):
+            prog.update(task, completed=done, total=total)
+
+        yield cb
+
+
+def _config(quick: bool, dx_mm: float | None, cfl: float, lowpass_hz: float | None):
+    from ..sph.api import default_config
+
+    return default_config(quick, dx=None if dx_mm is None else dx_mm * 1e-3, cfl=cfl,
+                          lowpass_hz=lowpass_hz)
+
+
+def _unstable(e) -> None:
+    from . import err
+
+    err(f"[bold red]error:[/] {e}")
+    raise typer.Exit(3)
+
+
+@sph_app.command("run")
+def run_cmd(
+    leg: Leg = typer.Option(Leg.flat, "--leg", help="Leg shape (flat, c, reverse-c, foot)."),
+    leg_file: Optional[Path] = typer.Option(None, "--leg-file", help="CSV polyline x_cm,z_cm from hip to tip."),
+    curvature: Optional[float] = typer.Option(None, help="Arc curvature in [-1, 1] (1 = C, -1 = reverse C)."),
+    length_cm: Optional[float] = typer.Option(None, help="Chord length, cm [default 7.62]."),
+    width_cm: Optional[float] = typer.Option(None, help="Leg width, cm [default 2.54]."),
+    thickness_cm: float = typer.Option(0.64, help="Leg thickness, cm."),
+    hip_height_cm: float = typer.Option(2.0, help="Hip height above the surface, cm."),
+    omega: float = typer.Option(0.2, help="Angular speed, rad/s."),
+    theta_start_deg: float = typer.Option(-135.0, help="First leg angle, deg."),
+    theta_end_deg: float = typer.Option(135.0, help="Last leg angle, deg."),
+    n_theta: int = typer.Option(271, help="Number of output angles."),
+    motion_file: Optional[Path] = typer.Option(None, help="Planar motion CSV time_s,hip_x_cm,hip_z_cm,angle_deg."),
+    medium: str = _MEDIUM,
+    quick: bool = _QUICK,
+    dx_mm: Optional[float] = _DX,
+    cfl: float = typer.Option(0.2, help="Courant number of the time step."),
+    lowpass_hz: Optional[float] = typer.Option(None, help="Zero-phase Butterworth low-pass of the force record, Hz [default: none]."),
+    checkpoint: Optional[Path] = typer.Option(None, help="Checkpoint file: written every minute; a rerun resumes from it."),
+    snapshots: int = typer.Option(0, help="Number of particle snapshots to keep (evenly over the contact)."),
+    snapshots_out: Optional[Path] = typer.Option(None, help="Write the snapshots here (.nc)."),
+    compare_rft: bool = typer.Option(False, help="Also run RFT and print peak differences and MSE."),
+    out: Optional[str] = typer.Option(None, "--out", "-o", help="Output .nc, .zarr or .csv [default: CSV on stdout]."),
+    plot: Optional[Path] = typer.Option(None, help="Figure of the forces (.png/.pdf/.svg)."),
+):
+    """SPH forces (Fx, Fz in N; torque in N m) on a leg moving through a granular bed.
+
+    Only the part of the motion where the leg can touch the bed is simulated.
+    """
+    import numpy as np
+
+    from .. import io
+    from ..geometry import make_leg, read_leg_csv
+    from ..motion import Rotation, read_motion_csv
+    from ..sph import SPHInstabilityError, simulate, snapshots_dataset
+    from ..units import CM, DEG
+    from . import err
+
+    w = (width_cm if width_cm is not None else 2.54) * CM
+    shape = (read_leg_csv(leg_file, w) if leg_file is not None else
+             make_leg(leg.value, None if length_cm is None else length_cm * CM, w, 100, curvature))
+    motion = (read_motion_csv(motion_file) if motion_file is not None else
+              Rotation(omega, hip_height_cm * CM, theta_start_deg * DEG, theta_end_deg * DEG, n_theta))
+    cfg = _config(quick, dx_mm, cfl, lowpass_hz)
+    traj = motion.trajectory()
+    snap_t = np.linspace(0, traj.time[-1] - traj.time[0], snapshots) if snapshots else ()
+    try:
+        with _progress(f"SPH {shape.name}") as cb:
+            ds, res = simulate(shape, motion, medium, config=cfg, thickness=thickness_cm * CM,
+                               snapshot_times=snap_t, checkpoint=checkpoint, progress=cb,
+                               return_run=True, quick=quick)
+    except SPHInstabilityError as e:
+        _unstable(e)
+    io.emit(ds, out)
+    if snapshots and snapshots_out is not None and res is not None:
+        snapshots_dataset(res).to_netcdf(snapshots_out, engine="h5netcdf")
+    if compare_rft:
+        from ..media import stress_model
+        from ..rft import simulate as rft_sim
+        from ..sph.validation import compare_with_rft
+
+        rft = rft_sim(shape, motion, stress_model(medium))
+        err(json.dumps(compare_with_rft(ds, rft), indent=1))
+    if plot is not None:
+        from .. import plots
+
+        series = {"SPH": ds}
+        if compare_rft:
+            series["RFT"] = rft
+        plots.forces(series, plot, title=f"SPH, {shape.name}, {medium}")
+    if out not in (None, "-"):
+        err(f"wrote {out}")
+
+
+@sph_app.command("bed")
+def bed_cmd(medium: str = _MEDIUM, quick: bool = _QUICK, dx_mm: Optional[float] = _DX,
+            initial: str = typer.Option("zero", help="Initial stress: zero (settle under gravity) or geostatic."),
+            plot: Optional[Path] = typer.Option(None, help="Figure of stress against depth.")):
+    """Scene 1: a bed at rest; vertical and lateral stress against depth (JSON on stdout)."""
+    from ..sph import plots, validation
+
+    dx = (dx_mm * 1e-3) if dx_mm else (5e-3 if quick else 2.5e-3)
+    r = validation.bed_at_rest(medium, dx=dx, initial=initial, depth=0.06 if quick else 0.1)
+    typer.echo(json.dumps({k: (v.tolist() if hasattr(v, "tolist") else v) for k, v in r.items()}))
+    if plot:
+        plots.bed(r, plot)
+
+
+@sph_app.command("column")
+def column_cmd(aspect: list[float] = typer.Option([0.5, 1.0, 2.0], help="Aspect ratios H/L (repeat)."),
+               medium: str = _MEDIUM, quick: bool = _QUICK, dx_mm: Optional[float] = _DX,
+               plot: Optional[Path] = typer.Option(None, help="Figure: deposits and run-out vs Lube et al. 2005.")):
+    """Scene 2: collapse of 2D granular columns; run-out and final height vs Lube et al. (2005)."""
+    from ..sph import plots, validation
+
+    dx = (dx_mm * 1e-3) if dx_mm else (4e-3 if quick else 2e-3)
+    base = 0.06 if quick else 0.1
+    rows = []
+    with _progress("columns") as cb:
+        for k, a in enumerate(aspect):
+            rows.append(validation.column_collapse(a, medium, base=base, dx=dx))
+            cb(k + 1, len(aspect))
+    typer.echo(json.dumps([{k: v for k, v in r.items() if isinstance(v, float)} for r in rows]))
+    if plot:
+        plots.columns(rows, plot)
+
+
+@sph_app.command("plate")
+def plate_cmd(medium: str = _MEDIUM, quick: bool = _QUICK, dx_mm: Optional[float] = _DX,
+              speed_cm_s: float = typer.Option(1.0, help="Plate speed, cm/s."),
+              depth_cm: float = typer.Option(5.0, help="Final depth, cm."),
+              plot: Optional[Path] = typer.Option(None, help="Figure: stress on the plate vs depth.")):
+    """Scene 3: a horizontal plate pushed down; alpha_z(0, pi/2) against Li et al. (2013)."""
+    from ..sph import plots, validation
+    from ..sph.api import default_config
+
+    cfg = default_config(quick, dx=None if dx_mm is None else dx_mm * 1e-3)
+    r = validation.plate_push(medium, speed=speed_cm_s * 1e-2, depth=depth_cm * 1e-2, config=cfg)
+    typer.echo(json.dumps({"alpha_z_N_per_cm3": r["alpha_z"] / 1e6,
+                           "alpha_z_measured_N_per_cm3": (r["alpha_z_measured"] or float("nan")) / 1e6,
+                           "alpha_z_rft_fit_N_per_cm3": r["alpha_z_fit"] / 1e6}))
+    if plot:
+        plots.plate(r, plot)
+
+
+@sph_app.command("legs")
+def legs_cmd(omega: list[float] = typer.Option([0.2], help="Angular speeds, rad/s (repeat; the thesis uses 0.2 ... 1.1)."),
+             legs: list[str] = typer.Option(["flat", "c", "reverse-c"], "--leg", help="Legs (repeat)."),
+             medium: str = _MEDIUM, quick: bool = _QUICK, dx_mm: Optional[float] = _DX,
+             n_theta: int = typer.Option(271, help="Output angles."),
+             outdir: Path = typer.Option(Path("results/sph"), help="Directory for series, metrics and figures."),
+             checkpoint_dir: Optional[Path] = typer.Option(None, help="Directory for checkpoints (resume)."),
+             ):
+    """Scenes 4-5: the rotating-leg test (SPH vs RFT) for several legs and speeds."""
+    from .. import io
+    from ..geometry import make_leg
+    from ..sph import SPHInstabilityError, plots, validation
+
+    cfg = _config(quick, dx_mm, 0.2, None)
+    outdir.mkdir(parents=True, exist_ok=True)
+    metrics = {}
+    for name in legs:
+        for w in omega:
+            tag = f"{name}_w{w:g}"
+            ck = checkpoint_dir / f"{tag}.npz" if checkpoint_dir else None
+            try:
+                with _progress(f"SPH {tag}") as cb:
+                    r = validation.rotating_leg(make_leg(name), w, medium, quick=quick, config=cfg,
+                                                n_theta=n_theta, progress=cb, checkpoint=ck)
+            except SPHInstabilityError as e:
+                _unstable(e)
+            io.write(r["sph"], outdir / f"sph_{tag}.nc")
+            metrics[tag] = r["metrics"]
+            plots.leg_comparison(r["sph"], r["rft"], outdir / f"sph_vs_rft_{tag}.png",
+                                 title=f"{name} leg, omega = {w:g} rad/s, {medium}")
+    (outdir / "metrics.json").write_text(json.dumps(metrics, indent=1))
+    typer.echo(json.dumps(metrics, indent=1))
+
+
+def register(app: typer.Typer) -> None:
+    app.add_typer(sph_app, name="sph")

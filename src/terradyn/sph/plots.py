@@ -1,0 +1,75 @@
+"""Figures of the SPH validation scenes (matplotlib, Agg backend). Each returns the figure and
+saves it when given ``path``."""
+from __future__ import annotations
+
+import matplotlib
+
+matplotlib.use("Agg", force=False)
+import matplotlib.pyplot as plt  # noqa: E402
+import numpy as np  # noqa: E402
+
+from ..plots import STYLE, _save, forces  # noqa: E402
+
+
+def bed(r: dict, path=None):
+    """Scene 1: -sigma_zz and -sigma_xx (kPa) against depth (cm) with the geostatic lines."""
+    with plt.rc_context(STYLE):
+        fig, ax = plt.subplots(figsize=(3.4, 3.0))
+        d = r["depth"] * 100
+        ax.plot(-r["szz"] / 1e3, d, "o", label=r"SPH $-\sigma_{zz}$")
+        ax.plot(-r["sxx"] / 1e3, d, "s", label=r"SPH $-\sigma_{xx}$")
+        ax.plot(r["geostatic"] / 1e3, d, "-", color="k", label=r"$\rho g d$")
+        ax.plot(r["lateral_ratio_dp_limit"] * r["geostatic"] / 1e3, d, "--", color="k",
+                label="Drucker-Prager limit ratio")
+        ax.invert_yaxis()
+        ax.set_xlabel("stress (kPa)")
+        ax.set_ylabel("depth (cm)")
+        ax.legend(frameon=False)
+        return _save(fig, path)
+
+
+def columns(rows: list[dict], path=None):
+    """Scene 2: final deposits and run-out / final height against Lube et al. (2005)."""
+    from .validation import lube2005
+
+    with plt.rc_context(STYLE):
+        fig, (a1, a2) = plt.subplots(1, 2, figsize=(7.0, 2.8))
+        for r in rows:
+            base = r["runout"] and (r["x"].max() / (r["runout"] + 1))
+            a1.plot(r["x"] / base, r["z"] / base, ".", ms=1.5, label=f"a = {r['aspect']:g}")
+        a1.set_xlabel(r"$x / L_i$")
+        a1.set_ylabel(r"$z / L_i$")
+        a1.set_aspect("equal")
+        a1.legend(frameon=False, markerscale=6)
+        aa = np.linspace(0.2, max(r["aspect"] for r in rows) * 1.2, 100)
+        lr, lh = lube2005(aa)
+        a2.plot(aa, lr, "-", color="C0", label="run-out, Lube 2005")
+        a2.plot(aa, lh, "--", color="C1", label="final height, Lube 2005")
+        a2.plot([r["aspect"] for r in rows], [r["runout"] for r in rows], "o", color="C0", label="run-out, SPH")
+        a2.plot([r["aspect"] for r in rows], [r["height"] for r in rows], "s", color="C1", label="final height, SPH")
+        a2.set_xlabel("aspect ratio a")
+        a2.set_ylabel(r"$(L_f - L_i)/L_i$,  $H_f / L_i$")
+        a2.legend(frameon=False)
+        return _save(fig, path)
+
+
+def plate(r: dict, path=None):
+    """Scene 3: stress on a horizontal plate (kPa) against depth, with the measured slope."""
+    with plt.rc_context(STYLE):
+        fig, ax = plt.subplots(figsize=(3.4, 2.8))
+        d = r["depth"]
+        ax.plot(d * 100, r["stress"] / 1e3, ".", label=f"SPH (slope {r['alpha_z'] / 1e6:.3f} N/cm$^3$)")
+        dd = np.clip(d, 0, None)
+        if r.get("alpha_z_measured"):
+            ax.plot(d * 100, r["alpha_z_measured"] * dd / 1e3, "k-",
+                    label=f"Li 2013 measured {r['alpha_z_measured'] / 1e6:.2f} N/cm$^3$")
+        ax.set_xlabel("plate depth (cm)")
+        ax.set_ylabel(r"vertical stress $F_z / A$ (kPa)")
+        ax.legend(frameon=False)
+        return _save(fig, path)
+
+
+def leg_comparison(sph, rft, path=None, title: str = ""):
+    """Scene 4/5: SPH and RFT forces of one leg."""
+    return forces({"SPH": sph, "RFT": rft}, path, title=title,
+                  styles={"SPH": {"color": "#d1495b"}, "RFT": {"color": "k", "ls": "--"}})
