@@ -37,10 +37,11 @@ def _conditions(at: List[str]) -> dict:
     return out
 
 
-def _estimator(inputs, energy, center, restarts, seed):
+def _estimator(inputs, energy, step_energy, center, restarts, seed):
     from ..dddas import Surrogate
 
-    return Surrogate(inputs=inputs or None, energy=energy, center=center, n_restarts=restarts, random_state=seed)
+    return Surrogate(inputs=inputs or None, energy=energy, step_energy=step_energy, center=center,
+                     n_restarts=restarts, random_state=seed)
 
 
 def register(app: typer.Typer) -> None:
@@ -53,7 +54,8 @@ def register(app: typer.Typer) -> None:
         data: Path = typer.Argument(..., help="Stacked force series along 'case' (.nc/.zarr) with condition coordinates."),
         out: Path = typer.Option(..., "--out", "-o", help="Model file to write (.nc)."),
         inputs: List[str] = typer.Option([], "--input", "-i", help="Condition coordinate(s) to regress on [default: all numeric ones along case]."),
-        energy: float = typer.Option(0.95, help="Cumulative explained variance kept per HOSVD mode."),
+        energy: float = typer.Option(0.95, help="Cumulative explained variance kept in the condition mode (sets D)."),
+        step_energy: float = typer.Option(0.9999, help="The same for the step and component modes."),
         center: bool = typer.Option(True, help="Subtract the mean trajectory before the HOSVD (--no-center: thesis form)."),
         restarts: int = typer.Option(2, help="GP optimizer restarts."),
         seed: int = typer.Option(0, help="Seed for the optimizer restarts."),
@@ -62,7 +64,7 @@ def register(app: typer.Typer) -> None:
         """Fit the surrogate to a stack of force series and save it (NetCDF, no pickle)."""
         from .. import io
 
-        sur = _estimator(inputs, energy, center, restarts, seed).fit(io.read(data))
+        sur = _estimator(inputs, energy, step_energy, center, restarts, seed).fit(io.read(data))
         sur.save(out)
         if plot:
             from ..dddas import plots
@@ -75,7 +77,8 @@ def register(app: typer.Typer) -> None:
         data: Path = typer.Argument(..., help="Stacked force series along 'case' (.nc/.zarr)."),
         out: Optional[str] = typer.Option(None, "--out", "-o", help="Table (.csv) or full result (.nc) [default: CSV on stdout]."),
         inputs: List[str] = typer.Option([], "--input", "-i", help="Condition coordinate(s)."),
-        energy: float = typer.Option(0.95, help="Cumulative explained variance kept per HOSVD mode."),
+        energy: float = typer.Option(0.95, help="Cumulative explained variance kept in the condition mode (sets D)."),
+        step_energy: float = typer.Option(0.9999, help="The same for the step and component modes."),
         center: bool = typer.Option(True, help="Subtract the mean trajectory before the HOSVD."),
         restarts: int = typer.Option(2, help="GP optimizer restarts."),
         seed: int = typer.Option(0, help="Seed for the optimizer restarts."),
@@ -87,7 +90,7 @@ def register(app: typer.Typer) -> None:
         from ..dddas.crossval import cross_validate, mse_table
 
         ds = io.read(data)
-        res = cross_validate(ds, _estimator(inputs, energy, center, restarts, seed),
+        res = cross_validate(ds, _estimator(inputs, energy, step_energy, center, restarts, seed),
                              io.read(baseline) if baseline else None,
                              progress=lambda i, n: _err(f"fold {i}/{n}"))
         if out and out.endswith(".nc"):

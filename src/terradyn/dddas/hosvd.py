@@ -74,11 +74,12 @@ class HOSVD:
         return np.tensordot(c, self.basis, axes=(1, 0)) + self.mean
 
 
-def hosvd(A, energy: float = 0.95, ranks: tuple[int | None, int | None, int | None] | None = None,
+def hosvd(A, energy: float | tuple[float, float, float] = 0.95, ranks: tuple[int | None, int | None, int | None] | None = None,
           center: bool = True) -> HOSVD:
     """Truncated higher-order SVD of a 3-way tensor ``A`` (p1, p2, p3).
 
-    ``energy``: cumulative explained variance to keep in each mode (0 < energy <= 1);
+    ``energy``: cumulative explained variance to keep in each mode (0 < energy <= 1), or one
+    value per mode;
     ``ranks``: fixed ranks per mode (None entries use ``energy``). ``center``: subtract the mean
     trajectory over mode 1 first. Why centred by default: uncentred, the mode-1 spectrum is
     dominated by the mean force curve (all conditions look alike at first order), so the 95 %
@@ -86,7 +87,10 @@ def hosvd(A, energy: float = 0.95, ranks: tuple[int | None, int | None, int | No
     ``center=False`` is the thesis's plain form.
     """
     A = finite_array("tensor", A, ndim=3)
-    energy = in_range("energy", energy, 1e-9, 1.0)
+    energies = tuple(energy) if np.ndim(energy) else (energy,) * 3
+    if len(energies) != 3:
+        raise InputError("energy", f"need 1 or 3 values, got {len(energies)}")
+    energies = tuple(in_range("energy", e, 1e-9, 1.0) for e in energies)
     if A.shape[0] < 2:
         raise InputError("tensor", f"need at least 2 conditions, got {A.shape[0]}")
     mean = A.mean(axis=0) if center else np.zeros(A.shape[1:])
@@ -107,7 +111,7 @@ def hosvd(A, energy: float = 0.95, ranks: tuple[int | None, int | None, int | No
         maxr = max(1, min(maxr, int(np.sum(s > s[0] * 1e-12))))
         r = ranks[k]
         if r is None:
-            r = min(rank_for(cv, energy), maxr)
+            r = min(rank_for(cv, energies[k]), maxr)
         elif not 1 <= int(r) <= len(s):
             raise InputError("ranks", f"mode {k + 1} rank must be in [1, {len(s)}], got {r}")
         factors.append(U[:, : int(r)])

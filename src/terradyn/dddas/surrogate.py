@@ -68,7 +68,12 @@ class Surrogate(BaseEstimator):
     ----------
     inputs: names of the condition coordinates along ``case`` (None: all numeric ones).
     components: force components modelled; must include "Fx" and "Fz" ("torque" optional).
-    energy: cumulative explained variance kept in each HOSVD mode (thesis: 0.95).
+    energy: cumulative explained variance kept in the condition mode (thesis: 0.95); this
+    sets D, the number of coefficients (the filter's dimension).
+    step_energy: the same for the step and component modes (default 0.9999). Truncating them
+    saves nothing online (the basis is D x steps x components either way) but blends the Fx
+    and Fz shapes into one; then the model cannot fit data it was trained on, and a particle
+    filter commits early to a wrong value. ``step_energy=energy`` is the thesis's uniform rule.
     ranks: fixed HOSVD ranks (r1, r2, r3) instead of ``energy`` (None entries use energy).
     center: subtract the mean trajectory before the HOSVD (see :func:`hosvd.hosvd`).
     scaling: "rms" (divide each component by its RMS) or "none".
@@ -78,7 +83,8 @@ class Surrogate(BaseEstimator):
     """
 
     def __init__(self, inputs: Sequence[str] | None = None, components: Sequence[str] = ("Fx", "Fz"),
-                 energy: float = 0.95, ranks: Sequence[int | None] | None = None, center: bool = True,
+                 energy: float = 0.95, step_energy: float = 0.9999,
+                 ranks: Sequence[int | None] | None = None, center: bool = True,
                  scaling: str = "rms", length_scale_bounds: tuple[float, float] = (0.05, 100.0),
                  constant_bounds: tuple[float, float] = (1e-3, 1e3), noise_level: float = 1e-3,
                  noise_bounds: tuple[float, float] = (1e-8, 1.0), n_restarts: int = 2,
@@ -86,6 +92,7 @@ class Surrogate(BaseEstimator):
         self.inputs = inputs
         self.components = components
         self.energy = energy
+        self.step_energy = step_energy
         self.ranks = ranks
         self.center = center
         self.scaling = scaling
@@ -105,6 +112,7 @@ class Surrogate(BaseEstimator):
         if "Fx" not in comps or "Fz" not in comps or len(set(comps)) != len(comps):
             raise InputError("components", f"must include Fx and Fz once each, got {comps}")
         in_range("energy", self.energy, 1e-6, 1.0)
+        in_range("step_energy", self.step_energy, 1e-6, 1.0)
         if self.scaling not in ("rms", "none"):
             raise InputError("scaling", f"must be 'rms' or 'none', got {self.scaling!r}")
         integer("n_restarts", self.n_restarts, 0)
@@ -156,7 +164,8 @@ class Surrogate(BaseEstimator):
         else:
             scale = np.ones(Y.shape[2])
         self.scale_ = scale
-        h = hosvd(Y / scale, energy=self.energy, ranks=self.ranks, center=self.center)
+        h = hosvd(Y / scale, energy=(self.energy, self.step_energy, self.step_energy), ranks=self.ranks,
+                  center=self.center)
         self.hosvd_ = h
         self.basis_ = h.basis                      # (D, S, C), scaled units
         self.mean_ = h.mean                        # (S, C), scaled units
