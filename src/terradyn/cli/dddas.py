@@ -134,6 +134,7 @@ def register(app: typer.Typer) -> None:
         resample: Resampler = typer.Option(Resampler.systematic, help="Resampling scheme."),
         jitter: float = typer.Option(0.1, help="Liu-West jitter bandwidth in [0, 1)."),
         prior_floor: float = typer.Option(0.0, help="Prior std floor as a fraction of the training coefficients' spread."),
+        jitter_floor: float = typer.Option(0.0, help="Particle-filter process noise: jitter std floor as a fraction of the prior std."),
         seed: int = typer.Option(0, help="Random seed."),
         out: Optional[str] = typer.Option(None, "--out", "-o", help="Posterior series .nc/.zarr/.csv [default: CSV on stdout]."),
         plot: Optional[Path] = typer.Option(None, help="Figure of prior, observations and posterior (.png)."),
@@ -144,7 +145,8 @@ def register(app: typer.Typer) -> None:
         from ..dddas.online import Assimilation, read_observations, stream_csv
 
         sur = Surrogate.load(model)
-        opts = dict(n_particles=particles, resample=resample.value, jitter=jitter, rng=seed) if method.value == "pf" else {}
+        opts = dict(n_particles=particles, resample=resample.value, jitter=jitter, jitter_floor=jitter_floor,
+                    rng=seed) if method.value == "pf" else {}
         a = Assimilation(sur, _conditions(at), obs_std_n, method.value, prior_floor=prior_floor, **opts)
         prior = a.prediction()
         observations = None

@@ -125,10 +125,11 @@ def _nb_update(Ct, h, off, y, half_inv_var, ws, wsi):  # pragma: no cover - comp
 
 
 @njit(fastmath=True, nogil=True, cache=True)
-def _nb_resample(Ct, out, ws, wsi, w64, w64i, systematic, seed, jitter):  # pragma: no cover
+def _nb_resample(Ct, out, ws, wsi, w64, w64i, systematic, seed, jitter, jfloor):  # pragma: no cover
     """Resample the columns of Ct (D, N) by the weights in the workspace (set by
     _nb_update), jitter them (Liu-West, uniform noise), and reset the log-weights.
-    ``seed``: uint32 from the caller's Generator; out (D, N) float32 scratch."""
+    ``seed``: uint32 from the caller's Generator; out (D, N) float32 scratch; jfloor (D,):
+    lower bound on the jitter noise std per coefficient (process noise)."""
     D, N = Ct.shape
     K = N + 1
     logw = ws[0:N]
@@ -191,7 +192,7 @@ def _nb_resample(Ct, out, ws, wsi, w64, w64i, systematic, seed, jitter):  # prag
             mu = s1 / N
             var = max(sq / N - mu * mu, 0.0)
             # u uniform in [0, 1): mean 1/2, variance 1/12.
-            amp = np.float32(jitter * math.sqrt(var) * math.sqrt(12.0))
+            amp = np.float32(max(jitter * math.sqrt(var), jfloor[d]) * math.sqrt(12.0))
             c0 = np.float32((1.0 - a) * (mu + x0)) - amp * np.float32(0.5)
             sd = np.uint32(seed + np.uint32(np.uint32(d + 1) * np.uint32(0x9E3779B9)))
             for i in range(N):
@@ -263,7 +264,8 @@ class ParticleFilter:
 
     def __init__(self, prior_mean, prior_cov=None, *, prior_std=None, n_particles: int = 5000,
                  resample: str = "multinomial", ess_threshold: float = 0.5, jitter: float = 0.1,
-                 rng: np.random.Generator | int | None = 0, backend: str = "numba"):
+                 jitter_floor: float = 0.0, rng: np.random.Generator | int | None = 0,
+                 backend: str = "numba"):
         m = finite_array("prior mean", prior_mean, ndim=1)
         D = len(m)
         if (prior_cov is None) == (prior_std is None):
@@ -285,6 +287,8 @@ class ParticleFilter:
         self.resample_method = choice("resample", resample, RESAMPLERS)
         self.ess_threshold = in_range("ess-threshold", ess_threshold, 0.0, 1.0)
         self.jitter = in_range("jitter", jitter, 0.0, 0.999)
+        floor = in_range("jitter-floor", jitter_floor, 0.0, 1.0)
+        self._jfloor = floor * np.sqrt(np.sum(L * L, axis=1))  # prior std per coefficient
         self.backend = choice("backend", backend, BACKENDS)
         self.rng = rng if isinstance(rng, np.random.Generator) else np.random.default_rng(rng)
         z = self.rng.standard_normal((N, D))
@@ -347,7 +351,8 @@ class ParticleFilter:
             seed = self._seeds[self._k]
             self._k += 1
             _nb_resample(self.Ct, self._out, self._ws, self._wsi, self._w64, self._w64i,
-                         self.resample_method == "systematic", seed, self.jitter)
+                         self.resample_method == "systematic", seed, max(self.jitter, 1e-12)
+                         if self._jfloor.any() else self.jitter, self._jfloor)
             self.ess = float(self.n)
             return
         w = np.exp(self._logw - self._logw.max())
@@ -359,10 +364,11 @@ class ParticleFilter:
             u = np.sort(self.rng.random(self.n))
         idx = np.minimum(np.searchsorted(cw, u), self.n - 1)
         X = self.C[idx]
-        if self.jitter > 0:
+        if self.jitter > 0 or self._jfloor.any():
             a = math.sqrt(1 - self.jitter ** 2)
             mu = X.mean(0)
-            X = a * X + (1 - a) * mu + self.jitter * X.std(0) * self.rng.standard_normal(X.shape)
+            amp = np.maximum(self.jitter * X.std(0), self._jfloor)
+            X = a * X + (1 - a) * mu + amp * self.rng.standard_normal(X.shape)
         self.C = X
         self._logw[:] = 0.0
         self.ess = float(self.n)
@@ -399,3 +405,4 @@ def warmup() -> None:
         pf = ParticleFilter(np.zeros(2), prior_std=np.ones(2), n_particles=16, resample=method, rng=0)
         pf.update(np.ones(2), 0.0, 0.5, 1.0)
         pf.resample()
+    ParticleFilter(np.zeros(2), prior_std=np.ones(2), n_particles=16, jitter_floor=0.1).resample()

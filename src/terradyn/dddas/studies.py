@@ -70,12 +70,13 @@ def _load(data) -> xr.Dataset:
 
 
 def _assimilation_run(sur: Surrogate, cond: dict, obs: xr.Dataset, obs_std: dict, particles: int,
-                      seed: int, resample: str = "systematic", prior_floor: float = 1.0):
+                      seed: int, resample: str = "systematic", prior_floor: float = 1.0,
+                      jitter_floor: float = 0.0):
     """Assimilate ``obs`` with the particle filter and the exact posterior; returns the two
     posterior series, the prior, the ESS trace and the mean time per PF update."""
     coord = sur.coord_
     pf = Assimilation(sur, cond, obs_std, "pf", prior_floor=prior_floor, n_particles=particles, rng=seed,
-                      resample=resample)
+                      resample=resample, jitter_floor=jitter_floor)
     ex = Assimilation(sur, cond, obs_std, "exact", prior_floor=prior_floor)
     warmup()  # compile / load the kernels outside the timed loop
     prior = pf.prediction()
@@ -97,7 +98,7 @@ def _mse(a: xr.Dataset, b: xr.Dataset, v: str) -> float:
 
 def legs_study(out: str | Path, data: dict | None = None, legs=LEGS, noise: float = 0.05,
                particles: int = 5000, seed: int = 0, energy: float = 0.95, test_case: int | None = None,
-               n_theta: int = 271, obs_every: int = 1,
+               n_theta: int = 271, obs_every: int = 1, jitter_floor: float = 0.01,
                progress: Callable[[str], None] | None = None) -> dict:
     """Surrogate, cross-validation and assimilation for the three legs.
 
@@ -106,7 +107,8 @@ def legs_study(out: str | Path, data: dict | None = None, legs=LEGS, noise: floa
     stand-in (:func:`rft_standin`, hip height 1.0-3.25 cm). ``noise``: Gaussian observation
     noise std as a fraction of the test case's RMS force per component; ``test_case``: index of
     the held-out case to assimilate (default: the middle one); ``obs_every``: assimilate every
-    k-th sample. Writes per leg ``<leg>_data.nc``, ``<leg>_model.nc``, ``<leg>_cv.nc``,
+    k-th sample; ``jitter_floor``: the particle filter's process noise (fraction of the prior
+    std; see :class:`ParticleFilter`). Writes per leg ``<leg>_data.nc``, ``<leg>_model.nc``, ``<leg>_cv.nc``,
     ``<leg>_cv.csv``, ``<leg>_posterior_pf.nc``, ``<leg>_posterior_exact.nc`` and figures."""
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
@@ -118,7 +120,7 @@ def legs_study(out: str | Path, data: dict | None = None, legs=LEGS, noise: floa
         raise InputError("data", f"unknown leg(s) {unknown}; allowed: {', '.join(LEGS)}")
     rng = np.random.default_rng(seed)
     summary = {"study": "dddas-legs", "legs": {}, "reported_cv_mse_N2": REPORTED_CV_MSE,
-               "noise_fraction": noise, "particles": particles, "seed": seed}
+               "noise_fraction": noise, "particles": particles, "seed": seed, "jitter_floor": jitter_floor}
     from .. import io
 
     for shape in legs:
@@ -168,7 +170,8 @@ def legs_study(out: str | Path, data: dict | None = None, legs=LEGS, noise: floa
             obs_std[v] = max(sd, 1e-6)
             obs[v] = (coord, truth[v].values[sel] + obs_std[v] * rng.standard_normal(len(sel)))
         _say(progress, f"{shape}: assimilating {len(sel)} noisy samples of case {k} ({cond})")
-        prior, post_pf, post_ex, ess, t_pf, n_res = _assimilation_run(sur_k, cond, obs, obs_std, particles, seed)
+        prior, post_pf, post_ex, ess, t_pf, n_res = _assimilation_run(sur_k, cond, obs, obs_std, particles, seed,
+                                                                      jitter_floor=jitter_floor)
         io.write(post_pf, out / f"{shape}_posterior_pf.nc")
         io.write(post_ex, out / f"{shape}_posterior_exact.nc")
         obs.to_netcdf(out / f"{shape}_observations.nc", engine="h5netcdf")
@@ -201,7 +204,7 @@ def legs_study(out: str | Path, data: dict | None = None, legs=LEGS, noise: floa
 def foot_study(out: str | Path, lengths_cm=None, test_cm: float = 29.0, max_deg: float = 3.0,
                n_theta: int = 61, medium: str = "poppy LP", trial=None, trial_length_cm: float = 27.0,
                particles: int = 5000, seed: int = 0, energy: float = 0.95, cutoff_hz: float = 10.0,
-               progress: Callable[[str], None] | None = None) -> dict:
+               jitter_floor: float = 0.01, progress: Callable[[str], None] | None = None) -> dict:
     """Human-sized foot: RFT data for lengths 25-35 cm (test length held out), surrogate at
     ``test_cm``, and assimilation of a trial's normal force.
 
@@ -209,7 +212,9 @@ def foot_study(out: str | Path, lengths_cm=None, test_cm: float = 29.0, max_deg:
     SYNTHETIC trial (commanded 12 deg, reached ~2.6 deg) from an RFT foot of nominal length
     ``trial_length_cm`` plus noise, bias and lag. The sensor offset is removed with the mean
     of the samples before the foot moves; the raw normal force is assimilated (Fz only, as in
-    the experiments) with the noise level estimated from the data."""
+    the experiments) with the noise level estimated from the data; the particle filter uses
+    process noise ``jitter_floor`` (fraction of the prior std) so that early samples, which
+    carry the sensor's offset error relative to small forces, cannot pin it."""
     from .. import experiment as ex
     from .. import geometry, io, rft
     from ..media import ZETA, stress_model
@@ -267,7 +272,8 @@ def foot_study(out: str | Path, lengths_cm=None, test_cm: float = 29.0, max_deg:
         raise InputError("trial", "its angles do not overlap the surrogate's theta range")
     _say(progress, f"foot: assimilating {obs.sizes['theta']} normal-force samples (noise {noise:.3g} N)")
     prior, post_pf, post_ex, ess, t_pf, n_res = _assimilation_run(sur, {"length_cm": test_cm}, obs,
-                                                                  {"Fz": noise, "Fx": noise}, particles, seed)
+                                                                  {"Fz": noise, "Fx": noise}, particles, seed,
+                                                                  jitter_floor=jitter_floor)
     io.write(post_pf, out / "foot_posterior_pf.nc")
     io.write(post_ex, out / "foot_posterior_exact.nc")
     truth_trial = None
@@ -283,7 +289,7 @@ def foot_study(out: str | Path, lengths_cm=None, test_cm: float = 29.0, max_deg:
                      title=f"foot {test_cm:g} cm: assimilating the {trial_src} trial's normal force")
     plots.ess_trace(ess, obs["theta"].values, out / "foot_ess.png", particles, "foot angle theta (deg)")
     summary = {
-        "study": "dddas-foot", "medium": medium, "train_lengths_cm": train_L.tolist(), "test_cm": test_cm,
+        "study": "dddas-foot", "medium": medium, "particles": particles, "jitter_floor": jitter_floor, "train_lengths_cm": train_L.tolist(), "test_cm": test_cm,
         "ranks": list(map(int, sur.ranks_)),
         "cv_mse_mean_N2": {c: float(cv["mse"].sel(component=c).mean()) for c in cv["component"].values},
         "surrogate_vs_rft_at_test_N2": {v: _mse(pred, truth_test, v) for v in ("Fx", "Fz")},
