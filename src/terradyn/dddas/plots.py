@@ -45,7 +45,8 @@ def explained_variance(surrogate, path, title: str = "") -> Path:
 
 
 def prediction(pred: xr.Dataset, path, truth: xr.Dataset | None = None, title: str = "",
-               observations: xr.Dataset | None = None, prior: xr.Dataset | None = None) -> Path:
+               observations: xr.Dataset | None = None, prior: xr.Dataset | None = None,
+               truth_label: str = "truth") -> Path:
     """Predicted Fx and Fz with +-2 std bands; optional truth, prior and observations."""
     plt = _plt()
     from ..series import coord_of
@@ -67,7 +68,7 @@ def prediction(pred: xr.Dataset, path, truth: xr.Dataset | None = None, title: s
             ax.fill_between(x, pred[v] - 2 * pred[f"{v}_std"], pred[v] + 2 * pred[f"{v}_std"],
                             color="tab:blue", alpha=0.25, lw=0, label="+-2 std")
         if truth is not None:
-            ax.plot(truth[c].values, truth[v].values, color="k", lw=1, label="truth")
+            ax.plot(truth[c].values, truth[v].values, color="k", lw=1, label=truth_label)
         ax.set_xlabel(_xlabel(c))
         ax.set_ylabel(f"{LABELS[v]} ({UNITS[v]})")
         ax.legend(fontsize=8)
@@ -96,7 +97,7 @@ def cv_errors(cv: xr.Dataset, path, title: str = "", reported: float | None = No
         if "mse_baseline" in cv:
             ax.plot(idx, cv["mse_baseline"].sel(component=comp).values, "k^", label=cv["mse_baseline"].attrs.get("source", "baseline"))
         if reported is not None:
-            ax.axhline(reported, color="tab:red", ls=":", label=f"thesis reported ~{reported:g}")
+            ax.axhline(reported, color="tab:red", ls=":", label=f"thesis reported ~{reported:g} (SPH, ten speeds)")
         ax.set_xticks(idx, [f"{v:g}" for v in xv], rotation=45, fontsize=8)
         ax.set_xlabel(f"held-out condition: {label}")
         ax.set_ylabel(f"mean square error of {comp} ({UNITS.get(comp, 'N')}^2)")

@@ -176,6 +176,7 @@ def legs_study(out: str | Path, data: dict | None = None, legs=LEGS, noise: floa
         io.write(post_ex, out / f"{shape}_posterior_exact.nc")
         obs.to_netcdf(out / f"{shape}_observations.nc", engine="h5netcdf")
         plots.prediction(post_pf, out / f"{shape}_assimilation.png", truth=truth, observations=obs, prior=prior,
+                         truth_label="held-out case (truth)",
                          title=f"{shape} leg, held-out {cond}: particle filter posterior ({source})")
         plots.ess_trace(ess, obs[coord].values, out / f"{shape}_ess.png", particles, plots._xlabel(coord),
                         f"{shape} leg: particle filter ESS")
@@ -246,7 +247,7 @@ def foot_study(out: str | Path, lengths_cm=None, test_cm: float = 29.0, max_deg:
     truth_test = sim(test_cm)
     pred = sur.predict({"length_cm": test_cm})
     io.write(pred, out / "foot_surrogate_29cm.nc" if test_cm == 29 else out / f"foot_surrogate_{test_cm:g}cm.nc")
-    plots.prediction(pred, out / "foot_surrogate.png", truth=truth_test,
+    plots.prediction(pred, out / "foot_surrogate.png", truth=truth_test, truth_label=f"RFT {test_cm:g} cm (held out)",
                      title=f"foot surrogate at {test_cm:g} cm vs RFT (held out)")
     # The trial.
     if trial is None:
@@ -286,6 +287,7 @@ def foot_study(out: str | Path, lengths_cm=None, test_cm: float = 29.0, max_deg:
                              "pf": {v: _mse(post_pf, truth_trial, v) for v in ("Fx", "Fz")},
                              "exact": {v: _mse(post_ex, truth_trial, v) for v in ("Fx", "Fz")}}}
     plots.prediction(post_pf, out / "foot_assimilation.png", truth=truth_trial, observations=obs, prior=prior,
+                     truth_label=f"trial's truth (RFT, {trial_length_cm:g} cm foot)",
                      title=f"foot {test_cm:g} cm: assimilating the {trial_src} trial's normal force")
     plots.ess_trace(ess, obs["theta"].values, out / "foot_ess.png", particles, "foot angle theta (deg)")
     summary = {
