@@ -254,3 +254,12 @@ def test_jitter_floor_keeps_the_particles_from_collapsing(backend):
     # The floor's noise (0.05 prior std) is added at each resampling: the spread stays above it.
     assert np.all(np.sqrt(np.diag(walk.cov)) > 0.03 * sd0)
     assert np.all(np.sqrt(np.diag(plain.cov)) < np.sqrt(np.diag(walk.cov)))
+
+
+def test_filter_survives_an_absurd_sample():
+    # A sample 1e20 noise levels away must not produce NaN weights.
+    pf = ParticleFilter(np.zeros(2), prior_std=np.ones(2), n_particles=1000, rng=0)
+    pf.update(np.ones(2), 0.0, 1e18, 1e-3)
+    assert np.isfinite(pf.weights).all() and np.isfinite(pf.mean).all()
+    with pytest.raises(InputError):
+        pf.update(np.ones(2), 0.0, 1.0, 0.0)

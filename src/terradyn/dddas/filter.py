@@ -99,7 +99,7 @@ def _nb_update(Ct, h, off, y, half_inv_var, ws, wsi):  # pragma: no cover - comp
     hv = np.float32(half_inv_var)
     for i in range(N):
         r = yy - pred[i]
-        v = logw[i] - hv * r * r
+        v = max(logw[i] - hv * r * r, np.float32(-1.0e30))  # never -inf (float32 overflow)
         logw[i] = v
         m = max(m, v)
     shift = m if m < _RENORM else np.float32(0.0)
@@ -324,6 +324,8 @@ class ParticleFilter:
         """Assimilate one sample y (predicted ``h @ c + offset``, noise std ``sigma``, same
         units); resample when the ESS falls below the threshold. Returns the ESS after the
         update, before any resampling."""
+        if not sigma > 0:
+            raise InputError("sigma", f"observation noise std must be > 0, got {sigma!r}")
         if self.backend == "numba":
             h32 = self._h32
             h32[:] = h
