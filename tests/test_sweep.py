@@ -402,3 +402,20 @@ def test_sph_options_are_checked_at_plan_time():
         sw.parse(SPH_TINY.replace("dx_mm = 6", "dx_mm = -1"))
     with pytest.raises(InputError, match="model.zeta"):
         sw.parse(SPH_TINY.replace("dx_mm = 6", "zeta = 1"))
+
+
+def test_case_files_round_trip_exactly_in_both_netcdf_flavours(tmp_path):
+    c = sw.parse(SMALL).cases[0]
+    _, ds = sw.run_case(c.id, c.params, single_thread=False)
+    st = sw.Store(tmp_path / "r.sweep")
+    (tmp_path / "r.sweep" / "cases").mkdir(parents=True)
+    (tmp_path / "r.sweep" / "failed").mkdir()
+    st.write_case("nc3", ds)
+    assert st.case_path("nc3").read_bytes()[:3] == b"CDF"
+    xr.testing.assert_identical(st.read_case("nc3"), ds)
+    with xr.open_dataset(st.case_path("nc3")) as f:  # any NetCDF reader sees the same
+        xr.testing.assert_identical(f.load(), ds)
+    odd = ds.assign_attrs(note="µm, not ASCII")
+    st.write_case("nc4", odd)
+    assert st.case_path("nc4").read_bytes()[:4] == b"\x89HDF"
+    xr.testing.assert_identical(st.read_case("nc4"), odd)

@@ -124,7 +124,12 @@ class Store:
         """Write one finished case atomically (temp file, fsync, rename)."""
         final = self.case_path(cid)
         tmp = final.with_name(f".{final.name}.{os.getpid()}.tmp")
-        ds.to_netcdf(tmp, engine="h5netcdf")
+        try:
+            _write_nc3(tmp, ds)
+        except (TypeError, ValueError, UnicodeError, OverflowError):
+            # NetCDF3 cannot hold it (e.g. non-ASCII text, int64 data): NetCDF4 via xarray.
+            tmp.unlink(missing_ok=True)
+            ds.to_netcdf(tmp, engine="h5netcdf")
         fd = os.open(tmp, os.O_RDONLY)
         try:
             os.fsync(fd)
@@ -138,8 +143,7 @@ class Store:
         _atomic_bytes(self.path / FAILED / f"{cid}.json", json.dumps(info, indent=1).encode())
 
     def read_case(self, cid: str) -> xr.Dataset:
-        with xr.open_dataset(self.case_path(cid), engine="h5netcdf") as f:
-            return f.load()
+        return read_case_file(self.case_path(cid))
 
     def clean_temporaries(self) -> int:
         """Remove temporary files left by a killed run; returns how many."""
@@ -171,6 +175,83 @@ class Store:
             except ValueError:  # a torn last line after a power cut
                 continue
         return out
+
+
+# A force series is a handful of 1-D float arrays: NetCDF3 written directly with scipy takes
+# ~1 ms where xarray's NetCDF4 writer takes ~50-100 ms, which would cap the driver at a
+# dozen small cases per second. Both are NetCDF; read_case_file reads either.
+def _nc3_attr(v):
+    if isinstance(v, (bool, np.bool_)):
+        return int(v)
+    if isinstance(v, (str, int, float, np.integer, np.floating)):
+        if isinstance(v, str):
+            v.encode("ascii")  # UnicodeError -> NetCDF4 fallback
+        if isinstance(v, (int, np.integer)) and not -2**31 <= int(v) < 2**31:
+            raise OverflowError(v)
+        return v
+    if isinstance(v, (list, tuple, np.ndarray)):
+        a = np.asarray(v)
+        if a.dtype.kind in "fi":
+            return a.astype(float) if a.dtype.kind == "f" else a.astype(np.int32)
+    return json.dumps(v, default=str)
+
+
+def _write_nc3(path: Path, ds: xr.Dataset) -> None:
+    from scipy.io import netcdf_file
+
+    with netcdf_file(path, "w", version=2) as f:
+        for k, v in ds.attrs.items():
+            setattr(f, k, _nc3_attr(v))
+        for dim, n in ds.sizes.items():
+            f.createDimension(dim, n)
+        aux = [c for c in ds.coords if c not in ds.dims]
+        for name, var in ds.variables.items():
+            a = np.asarray(var.values)
+            if a.dtype.kind == "f":
+                a = a.astype(np.float64)
+            elif a.dtype.kind in "iub" and a.size and np.abs(a).max() < 2**31:
+                a = a.astype(np.int32)
+            else:
+                raise TypeError(f"{name}: {a.dtype} does not fit NetCDF3")
+            x = f.createVariable(name, a.dtype.char, var.dims)
+            x[...] = a
+            for k, v in var.attrs.items():
+                setattr(x, k, _nc3_attr(v))
+            if name in ds.data_vars and aux:  # CF: how readers know the auxiliary coordinates
+                x.coordinates = " ".join(aux)
+
+
+def read_case_file(path: str | Path) -> xr.Dataset:
+    """One case file (NetCDF3 as written by the store, or NetCDF4) as a Dataset."""
+    path = Path(path)
+    with open(path, "rb") as fh:
+        magic = fh.read(4)
+    if not magic.startswith(b"CDF"):
+        with xr.open_dataset(path, engine="h5netcdf") as f:
+            return f.load()
+    from scipy.io import netcdf_file
+
+    def attrs(obj):
+        out = {}
+        for k, v in obj._attributes.items():
+            if isinstance(v, bytes):
+                v = v.decode()
+            elif isinstance(v, np.ndarray) and v.size == 1:
+                v = v.item()
+            out[k] = v
+        return out
+
+    with netcdf_file(path, "r", mmap=False) as f:
+        variables = {name: (v.dimensions, np.array(v.data).astype(v.data.dtype.newbyteorder("=")), attrs(v))
+                     for name, v in f.variables.items()}
+        gattrs = attrs(f)
+    aux = set()
+    for _, _, a in variables.values():
+        aux.update(str(a.pop("coordinates", "")).split())
+    dims = {d for dims, _, _ in variables.values() for d in dims}
+    coords = {k: v for k, v in variables.items() if k in dims or k in aux}
+    data = {k: v for k, v in variables.items() if k not in coords}
+    return xr.Dataset(data, coords=coords, attrs=gattrs)
 
 
 def status(path: str | Path) -> dict:
