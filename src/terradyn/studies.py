@@ -160,8 +160,26 @@ def experiment_study(out, n_elements: int = 100) -> dict:
             "mse_N2_mean_over_sands": {f"{leg} {c}": round(float(v), 3) for (leg, c), v in mse.items()}}
 
 
+def dddas_foot_study(out, **kwargs) -> dict:
+    """DDDAS on the human-sized foot (thesis 4): RFT lengths 25-35 cm, surrogate at 29 cm,
+    assimilation of a synthetic trial's normal force. Writes to ``out/dddas_foot``."""
+    from .dddas import studies as ds
+
+    return ds.foot_study(Path(out) / "dddas_foot", **kwargs)
+
+
+def dddas_legs_study(out, **kwargs) -> dict:
+    """DDDAS on the three legs: surrogate, cross-validation and assimilation. On the RFT
+    stand-in (hip height varies; RFT is rate-independent) until SPH datasets are given.
+    Writes to ``out/dddas_legs``."""
+    from .dddas import studies as ds
+
+    return ds.legs_study(Path(out) / "dddas_legs", **kwargs)
+
+
 STUDIES = {"interp": interp_study, "legs": legs_study, "frames": frames_study,
-           "foot": foot_study, "experiment": experiment_study}
+           "foot": foot_study, "experiment": experiment_study, "dddas-foot": dddas_foot_study,
+           "dddas-legs": dddas_legs_study}
 
 
 def run_all(out, progress=None, quick: bool = False) -> dict:
@@ -174,6 +192,10 @@ def run_all(out, progress=None, quick: bool = False) -> dict:
         kwargs = {}
         if quick and name == "legs":
             kwargs = {"n_theta": 91, "n_elements": 40}
+        if quick and name == "dddas-legs":
+            kwargs = {"n_theta": 91, "particles": 1000, "legs": ("flat",)}
+        if quick and name == "dddas-foot":
+            kwargs = {"particles": 1000}
         summary[name] = fn(out, **kwargs)
     _write_json(out / "summary.json", summary)
     return summary
