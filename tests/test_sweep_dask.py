@@ -114,6 +114,18 @@ def test_environment_variable_names_the_scheduler(cluster, tmp_path, monkeypatch
     assert (s.executor, s.done) == ("dask", 3)
 
 
+def test_a_failing_case_on_dask_is_recorded_and_the_others_finish(cluster, tmp_path):
+    spec = sw.parse(SMALL)
+    bad = spec.cases[1]
+    params = json.loads(json.dumps(bad.params))
+    params["model"]["medium"] = "moon dust"  # slips past the plan: fails on the worker
+    spec.cases[1] = sw.Case(bad.id, params, bad.varied)
+    s = sw.run(spec, tmp_path / "f.sweep", scheduler=cluster.address, retries=1)
+    assert s.done == 5 and list(s.failed) == [bad.id] and "moon dust" in s.failed[bad.id]
+    st = sw.status(tmp_path / "f.sweep")
+    assert (st["done"], st["failed"]) == (5, 1) and "InputError" in st["failures"][bad.id]["error"]
+
+
 def test_unreachable_scheduler_is_an_input_error(tmp_path, monkeypatch):
     monkeypatch.setattr("terradyn.sweep.execute.CONNECT_TIMEOUT", "1s")
     with pytest.raises(InputError, match="scheduler"):

@@ -178,14 +178,15 @@ def _dask(todo, address: str, retries: int):
             f = client.submit(run_case, c.id, c.params, key=f"terradyn-case-{c.id}-{os.urandom(4).hex()}",
                               pure=False, retries=retries)
             futs[f.key] = (c.id, f)
-        for f in d_completed([f for _, f in futs.values()]):
-            cid = futs[f.key][0]
-            try:
-                yield f.result() + (None,)
-            except Exception as e:
-                yield cid, None, e
-            finally:
-                f.release()
+        # with_results: the client fetches results concurrently as tasks finish, rather than
+        # one blocking round trip per case from this loop.
+        for f, res in d_completed([f for _, f in futs.values()], with_results=True, raise_errors=False):
+            cid = futs.pop(f.key)[0]
+            if f.status == "finished":
+                yield res + (None,)
+            else:
+                yield cid, None, res if isinstance(res, BaseException) else RuntimeError(str(res))
+            f.release()
     finally:
         client.close()
 
