@@ -162,12 +162,12 @@ def boundary_state(x, z, vx, vz, rho, mass, kind, nox, noz, dcl, sxx, szz, sxz, 
 
 
 @numba.njit(parallel=True, fastmath=True, cache=True)
-def gather(cell_index, x, z, vx, vz, gvx, gvz, rho, mass, kind, nox, noz, dcl, sxx, szz, sxz,
-           out_f, out_k):
+def gather(cell_index, x, z, vx, vz, gvx, gvz, rho, mass, kind, nox, noz, dcl, guard, sxx, szz,
+           sxz, out_f, out_k):
     """Copy what the pair loop reads into cell order (contiguous neighbour ranges).
 
     out_f: (11, N) rows x, z, v_x, v_z (ghost velocity for boundary particles), sigma/rho^2
-    (xx, zz, xz), volume m/rho, rho, nox, noz; out_k: (2, N) float rows kind, dcl."""
+    (xx, zz, xz), volume m/rho, rho, nox, noz; out_k: (3, N) float rows kind, dcl, guard."""
     for k in prange(cell_index.shape[0]):
         i = cell_index[k]
         r = rho[i]
@@ -189,6 +189,7 @@ def gather(cell_index, x, z, vx, vz, gvx, gvz, rho, mass, kind, nox, noz, dcl, s
         out_f[10, k] = noz[i]
         out_k[0, k] = kind[i]
         out_k[1, k] = dcl[i]
+        out_k[2, k] = guard[i]
 
 
 @numba.njit(parallel=True, fastmath=True, cache=True)
@@ -261,12 +262,17 @@ def velocity_gradient(srt, srtk, cell_index, h, xmin, zmin, inv_cell, ncx, ncz, 
 
 @numba.njit(parallel=True, fastmath=True, cache=True)
 def accelerations(srt, srtk, cell_index, mass, h, c0, av_alpha, av_beta, av_boundary, gx, gz,
-                  hip_x, hip_z, xmin, zmin, inv_cell, ncx, ncz, cell_start, ax, az, fleg):
+                  hip_x, hip_z, half_t, gap, xmin, zmin, inv_cell, ncx, ncz, cell_start, ax, az,
+                  fleg, push):
     """Second pass (stresses): acceleration of every granular particle and the force it exerts
     on the leg (fleg[i] = (Fx, Fz, torque about (hip_x, hip_z)), per unit depth). Artificial
     viscosity acts between granular particles, and on wall/leg pairs only if ``av_boundary``:
     its stress ~ alpha rho c v scales with the (numerical) sound speed and would add a drag
-    proportional to the leg speed that the material does not have."""
+    proportional to the leg speed that the material does not have.
+
+    Penetration guard: a granular particle closer than ``gap`` to the leg's surface (half
+    thickness ``half_t`` from its centre line, seen from a guarded leg particle: not at the
+    tip) gets push[i] = the displacement back to that distance, applied after the drift."""
     h2 = h * h
     sup2 = 4.0 * h2
     dwc = -5.0 * _W2D / (h2 * h2)
@@ -284,6 +290,7 @@ def accelerations(srt, srtk, cell_index, mass, h, c0, av_alpha, av_beta, av_boun
     NOZ = srt[10]
     KND = srtk[0]
     DCL = srtk[1]
+    GRD = srtk[2]
     for k in prange(cell_index.shape[0]):
         if KND[k] != SOIL:
             continue
@@ -293,6 +300,9 @@ def accelerations(srt, srtk, cell_index, mass, h, c0, av_alpha, av_beta, av_boun
         vxi = VX[k]
         vzi = VZ[k]
         rhoi = RHO[k]
+        dmin = gap
+        pnx = 0.0
+        pnz = 0.0
         pxx = PXX[k]
         pzz = PZZ[k]
         pxz = PXZ[k]
@@ -338,6 +348,12 @@ def accelerations(srt, srtk, cell_index, mass, h, c0, av_alpha, av_beta, av_boun
                 a_x += pax
                 a_z += paz
                 if kj == LEG:
+                    if GRD[j] > 0.0:
+                        dn = rx * NOX[j] + rz * NOZ[j] + DCL[j] - half_t
+                        if dn < dmin:
+                            dmin = dn
+                            pnx = NOX[j]
+                            pnz = NOZ[j]
                     # reaction on the leg, applied at the leg particle
                     mi = mass[i]
                     fx -= mi * pax
@@ -348,6 +364,8 @@ def accelerations(srt, srtk, cell_index, mass, h, c0, av_alpha, av_beta, av_boun
         fleg[i, 0] = fx
         fleg[i, 1] = fz
         fleg[i, 2] = tq
+        push[i, 0] = (gap - dmin) * pnx
+        push[i, 1] = (gap - dmin) * pnz
 
 
 @numba.njit(parallel=True, fastmath=True, cache=True)
@@ -405,7 +423,7 @@ def update_stress(rho, sxx, szz, sxz, syy, sidx, drho, lxx, lxz, lzx, lzz, dt, s
 
 
 @numba.njit(parallel=True, cache=True)  # no fastmath: it would assume away the NaN checks
-def kick_drift(x, z, vx, vz, rho, sxx, szz, sidx, ax, az, dt, damping, vmax_allowed, bad):
+def kick_drift(x, z, vx, vz, rho, sxx, szz, sidx, ax, az, push, dt, damping, vmax_allowed, bad):
     """v += dt a (optionally damped), x += dt v for the granular particles ``sidx``. Returns the
     number of particles that went non-finite or faster than ``vmax_allowed`` (``bad`` flags)."""
     nbad = 0
@@ -416,8 +434,8 @@ def kick_drift(x, z, vx, vz, rho, sxx, szz, sidx, ax, az, dt, damping, vmax_allo
         nvz = (vz[i] + dt * az[i]) * fdamp
         vx[i] = nvx
         vz[i] = nvz
-        x[i] += dt * nvx
-        z[i] += dt * nvz
+        x[i] += dt * nvx + push[i, 0]
+        z[i] += dt * nvz + push[i, 1]
         ok = (nvx * nvx + nvz * nvz < vmax_allowed * vmax_allowed) and math.isfinite(
             x[i] + z[i] + rho[i] + sxx[i] + szz[i])
         if ok:

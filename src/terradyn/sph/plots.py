@@ -35,7 +35,7 @@ def columns(rows: list[dict], path=None):
     with plt.rc_context(STYLE):
         fig, (a1, a2) = plt.subplots(1, 2, figsize=(7.0, 2.8))
         for r in rows:
-            base = r["runout"] and (r["x"].max() / (r["runout"] + 1))
+            base = r["base"]
             a1.plot(r["x"] / base, r["z"] / base, ".", ms=1.5, label=f"a = {r['aspect']:g}")
         a1.set_xlabel(r"$x / L_i$")
         a1.set_ylabel(r"$z / L_i$")

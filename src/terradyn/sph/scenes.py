@@ -151,9 +151,12 @@ def leg_particles(leg: Leg, dx: float, thickness: float = LEG_THICKNESS, layers:
     thickness/2 from the centre line) and going inwards (past the other surface if the leg is
     thinner than the kernel support); a side's particles interact only with material on that
     side. Returns bx, bz, bnx, bnz (outward normal of the side), dcl (offset from the centre
-    line along that normal), all (M,)."""
+    line along that normal), guard (1 except within 1.5 dx of the tip, where the side planes
+    do not bound the body), all (M,)."""
     positive("thickness", thickness, "m")
-    P, T, _ = _centre_line(leg, dx)
+    P, T, L = _centre_line(leg, dx)
+    q = (np.arange(len(P)) + 0.5) * (L / len(P))
+    grd = (q < L - 1.5 * dx).astype(float)
     Nn = np.stack([-T[:, 1], T[:, 0]], -1)
     out = []
     for side in (1.0, -1.0):
@@ -161,8 +164,8 @@ def leg_particles(leg: Leg, dx: float, thickness: float = LEG_THICKNESS, layers:
         for k in range(layers):
             d = 0.5 * thickness - (k + 0.5) * dx
             pos = P + d * n_out
-            out.append((pos[:, 0], pos[:, 1], n_out[:, 0], n_out[:, 1], np.full(len(P), d)))
-    return tuple(np.concatenate([o[i] for o in out]) for i in range(5))
+            out.append((pos[:, 0], pos[:, 1], n_out[:, 0], n_out[:, 1], np.full(len(P), d), grd))
+    return tuple(np.concatenate([o[i] for o in out]) for i in range(6))
 
 
 def _body_to_world(bx, bz, hip_x, hip_z, ang):
@@ -193,7 +196,7 @@ def leg_scene(leg: Leg, traj: Trajectory, i0: int, medium: str | GranularMateria
     dx = cfg.dx
     xc = float(np.mean(traj.hip_x))
     bed_width, bed_depth = snap(bed_width, dx), snap(bed_depth, dx)
-    bx, bz, bnx, bnz, dcl = leg_particles(leg, dx, thickness, cfg.wall_layers)
+    bx, bz, bnx, bnz, dcl, guard = leg_particles(leg, dx, thickness, cfg.wall_layers)
     sx, sz = lattice(xc - bed_width / 2, xc + bed_width / 2, -bed_depth, 0.0, dx)
     # remove material inside the leg's body at the start pose
     P, _, _ = _centre_line(leg, 0.25 * dx)
@@ -208,7 +211,8 @@ def leg_scene(leg: Leg, traj: Trajectory, i0: int, medium: str | GranularMateria
     lx, lz = _body_to_world(bx, bz, traj.hip_x[i0], traj.hip_z[i0], traj.angle[i0])
     p = _assemble([(sx, sz, SOIL), (wx, wz, WALL), (lx, lz, LEG)], mat, dx)
     _set_stress(p, mat, 0.0, "geostatic")
-    body = RigidBody(bx, bz, bnx, bnz, dcl, traj, float(traj.time[i0]), float(leg.width))
+    body = RigidBody(bx, bz, bnx, bnz, dcl, traj, float(traj.time[i0]), float(leg.width),
+                     thickness, guard)
     return Scene(p, mat, cfg, leg=body,
                  meta={"scene": "leg", "leg": leg.describe(), "bed_width_m": bed_width,
                        "bed_depth_m": bed_depth, "thickness_m": thickness, "i0": int(i0)},

@@ -116,23 +116,25 @@ class RigidBody:
     trajectory: Trajectory
     t0: float
     width: float
+    thickness: float = 0.0
+    guard: np.ndarray | None = None  # (n,) 1 where the penetration guard applies (not the tip)
 
     def pose(self, t_traj: float):
         """(hip_x, hip_z, hip_vx, hip_vz, hip_ax, hip_az, angle, omega, alpha) at trajectory
         time ``t_traj`` (linear interpolation of the samples; accelerations by differences)."""
+        tab = self.__dict__.get("_tab")
         tr = self.trajectory
         tt = tr.time
+        if tab is None:
+            acc = [np.gradient(a, tt) if len(tt) > 2 else np.zeros_like(tt)
+                   for a in (tr.hip_vx, tr.hip_vz, tr.angular_velocity)]
+            tab = np.stack([tr.hip_x, tr.hip_z, tr.hip_vx, tr.hip_vz, acc[0], acc[1], tr.angle,
+                            tr.angular_velocity, acc[2]])
+            self.__dict__["_tab"] = tab
         t = min(max(t_traj, tt[0]), tt[-1])
-        vals = [float(np.interp(t, tt, a)) for a in (tr.hip_x, tr.hip_z, tr.hip_vx, tr.hip_vz,
-                                                      tr.angle, tr.angular_velocity)]
-        acc = self.__dict__.get("_acc")
-        if acc is None:
-            acc = tuple(np.gradient(a, tt) if len(tt) > 2 else np.zeros_like(tt)
-                        for a in (tr.hip_vx, tr.hip_vz, tr.angular_velocity))
-            self.__dict__["_acc"] = acc
-        ax, az, al = (float(np.interp(t, tt, a)) for a in acc)
-        hx, hz, hvx, hvz, ang, om = vals
-        return hx, hz, hvx, hvz, ax, az, ang, om, al
+        k = min(int(np.searchsorted(tt, t, side="right")) - 1, len(tt) - 2)
+        f = (t - tt[k]) / (tt[k + 1] - tt[k])
+        return tuple((tab[:, k] + f * (tab[:, k + 1] - tab[:, k])).tolist())
 
 
 @dataclass
@@ -181,7 +183,13 @@ class Solver:
             setattr(self, name, np.zeros(n))
         self.fleg = np.zeros((n, 3))
         self._srt = np.zeros((11, n))
-        self._srtk = np.zeros((2, n))
+        self._srtk = np.zeros((3, n))
+        self.push = np.zeros((n, 2))
+        self.guard = np.zeros(n)
+        self.half_t = 0.0
+        if scene.leg is not None:
+            self.guard[self.lidx] = scene.leg.guard
+            self.half_t = 0.5 * scene.leg.thickness
         self.bad = np.zeros(len(self.sidx), np.int8)
         self.h = cfg.h
         self.c0 = mat.sound_speed
@@ -258,8 +266,8 @@ class Solver:
                 self.cell_index)
         self._boundaries(gx, gz)
         K.gather(self.cell_index, self.x, self.z, self.vx, self.vz, self.gvx, self.gvz, self.rho,
-                 self.mass, self.kind, self.nox, self.noz, self.dcl, self.sxx, self.szz, self.sxz,
-                 self._srt, self._srtk)
+                 self.mass, self.kind, self.nox, self.noz, self.dcl, self.guard, self.sxx, self.szz,
+                 self.sxz, self._srt, self._srtk)
         K.velocity_gradient(self._srt, self._srtk, self.cell_index, self.h, *grid[:6], self.drho,
                             self.lxx, self.lxz, self.lzx, self.lzz)
         K.update_stress(self.rho, self.sxx, self.szz, self.sxz, self.syy, self.sidx, self.drho,
@@ -267,15 +275,16 @@ class Solver:
                         mat.bulk_modulus, mat.alpha_phi, mat.k_c)
         self._boundaries(gx, gz)
         K.gather(self.cell_index, self.x, self.z, self.vx, self.vz, self.gvx, self.gvz, self.rho,
-                 self.mass, self.kind, self.nox, self.noz, self.dcl, self.sxx, self.szz, self.sxz,
-                 self._srt, self._srtk)
+                 self.mass, self.kind, self.nox, self.noz, self.dcl, self.guard, self.sxx, self.szz,
+                 self.sxz, self._srt, self._srtk)
         K.accelerations(self._srt, self._srtk, self.cell_index, self.mass, self.h, self.c0,
                         cfg.av_alpha, cfg.av_beta, cfg.av_boundary, gx, gz, hip_x, hip_z,
-                        *grid[:6], self.ax,
-                        self.az, self.fleg)
+                        self.half_t, 0.25 * cfg.dx, *grid[:6], self.ax, self.az, self.fleg,
+                        self.push)
         damping = self.settle_damping if self.settling else 0.0
         nbad = K.kick_drift(self.x, self.z, self.vx, self.vz, self.rho, self.sxx, self.szz,
-                            self.sidx, self.ax, self.az, self.dt, damping, self.vmax_allowed,
+                            self.sidx, self.ax, self.az, self.push, self.dt, damping,
+                            self.vmax_allowed,
                             self.bad)
         if nbad:
             k = int(np.argmax(self.bad))

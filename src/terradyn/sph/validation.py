@@ -95,7 +95,7 @@ def column_collapse(aspect: float, medium="3 mm glass CP", *, base=0.06, dx=4e-3
     front = float(xs[gap[0]] if len(gap) else xs[-1]) + 0.5 * dx
     top = float(z[x < 2 * dx].max()) + 0.5 * dx if (x < 2 * dx).any() else float(z.max() + 0.5 * dx)
     lr, lh = lube2005(aspect)
-    return {"aspect": aspect, "runout": (front - base) / base, "height": top / base,
+    return {"aspect": aspect, "base": base, "runout": (front - base) / base, "height": top / base,
             "runout_lube": float(lr), "height_lube": float(lh), "x": x, "z": z,
             "snapshots": res.snapshots, "max_speed": float(np.hypot(s.vx[s.sidx], s.vz[s.sidx]).max()),
             "p95_speed": float(np.quantile(np.hypot(s.vx[s.sidx], s.vz[s.sidx]), 0.95)),
