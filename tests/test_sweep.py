@@ -2,6 +2,7 @@
 from __future__ import annotations
 
 import collections
+import importlib.util
 import json
 import os
 import signal
@@ -419,3 +420,36 @@ def test_case_files_round_trip_exactly_in_both_netcdf_flavours(tmp_path):
     st.write_case("nc4", odd)
     assert st.case_path("nc4").read_bytes()[:4] == b"\x89HDF"
     xr.testing.assert_identical(st.read_case("nc4"), odd)
+
+
+def test_shipped_specs_plan():
+    from pathlib import Path
+
+    root = Path(__file__).resolve().parents[1]
+    specs = sorted((root / "examples" / "sweeps").glob("*.toml")) + sorted((root / "datasets").glob("*.toml"))
+    assert len(specs) >= 3
+    counts = {}
+    for p in specs:
+        if "sph" in p.name and importlib.util.find_spec("terradyn.sph") is None:
+            continue
+        counts[p.stem] = len(sw.load(p).cases)
+    assert counts["rft_foot_lengths"] == 11
+    if "sph_legs_speeds" in counts:
+        s = sw.load(root / "datasets" / "sph_legs_speeds.toml")
+        assert len(s.cases) == 30
+        assert sorted({c.params["motion"]["omega_rad_s"] for c in s.cases}) == [x / 10 for x in range(2, 12)]
+        assert {c.params["model"]["dx_mm"] for c in s.cases} == {2.5}
+
+
+def test_shipped_foot_dataset_is_what_its_spec_gives():
+    """datasets/rft_foot_lengths.nc matches a fresh in-process RFT run of its spec."""
+    from pathlib import Path
+
+    root = Path(__file__).resolve().parents[1]
+    ds = xr.open_dataset(root / "datasets" / "rft_foot_lengths.nc", engine="h5netcdf").load()
+    spec = sw.load(root / "datasets" / "rft_foot_lengths.toml")
+    assert list(ds.case_id.values) == [c.id for c in spec.cases]
+    assert list(ds.length_cm.values) == list(range(25, 36))
+    for i in (0, 4, 10):
+        np.testing.assert_allclose(ds.Fz.isel(case=i).values, direct(spec.cases[i].params).Fz.values, rtol=1e-12)
+    assert np.all(np.diff(ds.Fz.isel(theta=-1).values) > 0)  # longer foot, more lift (brief 2.3)
