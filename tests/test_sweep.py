@@ -244,10 +244,10 @@ def test_failed_case_does_not_stop_others_and_is_retried(tmp_path, monkeypatch):
     bad = spec.cases[2].id
     real = sw.run_case
 
-    def flaky(cid, params, single_thread=True):
+    def flaky(cid, params, *args):
         if cid == bad:
             raise RuntimeError("solver blew up")
-        return real(cid, params, single_thread)
+        return real(cid, params, *args)
 
     monkeypatch.setattr("terradyn.sweep.execute.run_case", flaky)
     store = tmp_path / "f.sweep"

@@ -43,6 +43,8 @@ def register(app: typer.Typer) -> None:
                                           "default: env TERRADYN_DASK_SCHEDULER, else a local pool."),
             workers: Optional[int] = typer.Option(None, "--workers", help="Local pool size [default: cores]; 0 = in this process."),
             retries: int = typer.Option(0, "--retries", help="Extra attempts of a case that raised (Dask)."),
+            checkpoint_dir: Optional[Path] = typer.Option(
+                None, "--checkpoint-dir", help="Where SPH cases keep resumable state [default: STORE/checkpoints; none on Dask]."),
             out: Optional[Path] = typer.Option(None, "--out", help="Collect into this NetCDF when all cases are done."),
             quiet: bool = typer.Option(False, "--quiet", "-q", help="No progress bar.")):
         """Run the unfinished cases of SPEC into the store (rerun to resume)."""
@@ -66,7 +68,8 @@ def register(app: typer.Typer) -> None:
 
             bar.start()
         try:
-            summ = run_sweep(s, store, workers=workers, scheduler=scheduler, retries=retries, progress=cb)
+            summ = run_sweep(s, store, workers=workers, scheduler=scheduler, retries=retries,
+                             checkpoint_dir=checkpoint_dir, progress=cb)
         finally:
             if bar is not None:
                 bar.stop()

@@ -65,8 +65,9 @@ def _single_thread() -> None:
         numba.set_num_threads(1)
 
 
-def simulate_case(params: dict):
-    """Run one resolved case (see :func:`terradyn.sweep.spec.resolve`) -> force series."""
+def simulate_case(params: dict, checkpoint: str | None = None):
+    """Run one resolved case (see :func:`terradyn.sweep.spec.resolve`) -> force series.
+    ``checkpoint``: a file where a long SPH case keeps its state (resumed by a rerun)."""
     leg, motion = build(params)
     m = params["model"]
     if m["name"] == "rft":
@@ -89,7 +90,8 @@ def simulate_case(params: dict):
         return sph.simulate(leg, motion, m["medium"], quick=m["quick"], config=cfg,
                             thickness=m["thickness_cm"] * CM,
                             bed_width=m["bed_width_cm"] * CM if "bed_width_cm" in m else None,
-                            bed_depth=m["bed_depth_cm"] * CM if "bed_depth_cm" in m else None)
+                            bed_depth=m["bed_depth_cm"] * CM if "bed_depth_cm" in m else None,
+                            checkpoint=checkpoint)
     raise InputError("sweep.model", f"unknown model {m['name']!r}")
 
 
@@ -102,15 +104,20 @@ def _sph_module():
     return importlib.import_module("terradyn.sph")
 
 
-def run_case(cid: str, params: dict, single_thread: bool = True):
-    """The unit of work: simulate one case and return (cid, force series with provenance)."""
+def run_case(cid: str, params: dict, single_thread: bool = True, checkpoint_dir: str | None = None):
+    """The unit of work: simulate one case and return (cid, force series with provenance).
+    ``checkpoint_dir``: where SPH cases checkpoint (``<dir>/<cid>.npz``)."""
     if single_thread:
         _single_thread()
     from .. import __version__
     import json
 
     t0, started = time.perf_counter(), time.time()
-    ds = simulate_case(params)
+    ck = None
+    if checkpoint_dir and params["model"]["name"] == "sph":
+        Path(checkpoint_dir).mkdir(parents=True, exist_ok=True)
+        ck = str(Path(checkpoint_dir) / f"{cid}.npz")
+    ds = simulate_case(params, checkpoint=ck)
     wall = time.perf_counter() - t0
     ds.attrs.update(sweep_case_id=cid, sweep_params=json.dumps(params, sort_keys=True),
                     sweep_wall_time_s=wall, sweep_host=socket.gethostname(), sweep_pid=os.getpid(),
@@ -130,10 +137,10 @@ def _tb(e: BaseException) -> str:
     return "".join(traceback.format_exception(type(e), e, e.__traceback__))[-4000:]
 
 
-def _serial(todo):
+def _serial(todo, ck):
     for c in todo:
         try:
-            yield run_case(c.id, c.params, single_thread=False) + (None,)
+            yield run_case(c.id, c.params, False, ck) + (None,)
         except Exception as e:  # one bad case does not stop the others
             yield c.id, None, e
 
@@ -142,7 +149,7 @@ def _pool_init():
     _single_thread()
 
 
-def _local(todo, workers: int):
+def _local(todo, workers: int, ck):
     import multiprocessing as mp
 
     # spawn: workers start clean, read the thread variables before numba loads, and do not
@@ -151,7 +158,7 @@ def _local(todo, workers: int):
     ex = ProcessPoolExecutor(max_workers=workers, mp_context=ctx, initializer=_pool_init)
     finished = False
     try:
-        futs = {ex.submit(run_case, c.id, c.params): c.id for c in todo}
+        futs = {ex.submit(run_case, c.id, c.params, True, ck): c.id for c in todo}
         for f in as_completed(futs):
             try:
                 yield f.result() + (None,)
@@ -163,7 +170,7 @@ def _local(todo, workers: int):
         ex.shutdown(wait=finished, cancel_futures=True)
 
 
-def _dask(todo, address: str, retries: int):
+def _dask(todo, address: str, retries: int, ck):
     try:
         from distributed import Client, as_completed as d_completed
     except ImportError:  # pragma: no cover - a dependency
@@ -175,7 +182,7 @@ def _dask(todo, address: str, retries: int):
     try:
         futs = {}
         for c in todo:
-            f = client.submit(run_case, c.id, c.params, key=f"terradyn-case-{c.id}-{os.urandom(4).hex()}",
+            f = client.submit(run_case, c.id, c.params, True, ck, key=f"terradyn-case-{c.id}-{os.urandom(4).hex()}",
                               pure=False, retries=retries)
             futs[f.key] = (c.id, f)
         # with_results: the client fetches results concurrently as tasks finish, rather than
@@ -199,7 +206,7 @@ def default_store(spec: SweepSpec) -> Path:
 
 
 def run(spec: SweepSpec | str | Path, store: str | Path | None = None, *, workers: int | None = None,
-        scheduler: str | None = None, retries: int = 0,
+        scheduler: str | None = None, retries: int = 0, checkpoint_dir: str | Path | None = None,
         progress: Callable[[int, int, str, bool], None] | None = None) -> Summary:
     """Run every unfinished case of ``spec`` into ``store`` (default ``<name>.sweep``).
 
@@ -207,6 +214,8 @@ def run(spec: SweepSpec | str | Path, store: str | Path | None = None, *, worker
     address; else a local process pool of ``workers`` processes (default: all cores) with
     one compute thread each; ``workers=0`` runs in this process. ``retries``: extra attempts
     of a case that raised (Dask only; cases on a lost worker are rescheduled by Dask anyway).
+    ``checkpoint_dir``: where long SPH cases keep resumable state (default: the store's
+    ``checkpoints/`` for local runs; none on Dask unless given, as a path the workers see).
     ``progress(done, total, case_id, ok)`` is called after each case. Returns a
     :class:`Summary`; failed cases are recorded in the store and retried by the next run.
     """
@@ -229,16 +238,17 @@ def run(spec: SweepSpec | str | Path, store: str | Path | None = None, *, worker
         done = st.done_ids()
         todo = [c for c in spec.cases if c.id not in done]
         total = len(spec.cases)
+        ck = str(checkpoint_dir or st.path / "checkpoints")
         if scheduler:
             executor, nw = "dask", 0
-            stream = _dask(todo, scheduler, retries)
+            stream = _dask(todo, scheduler, retries, str(checkpoint_dir) if checkpoint_dir else None)
         elif workers == 0 or len(todo) <= 1:
             executor, nw = "serial", 1
-            stream = _serial(todo)
+            stream = _serial(todo, ck)
         else:
             nw = min(workers or os.cpu_count() or 1, len(todo))
             executor = "local"
-            stream = _local(todo, nw)
+            stream = _local(todo, nw, ck)
         summary = Summary(store=str(st.path), total=total, skipped=total - len(todo), executor=executor,
                           workers=nw)
         run_id = os.urandom(6).hex()
