@@ -80,7 +80,7 @@ def _stress_step(s, L, dt=1e-3, mat=MATERIALS["3 mm glass CP"]):
     arr = [np.array([v], float) for v in s]
     K.update_stress(np.array([1600.0]), *arr, np.array([0]), np.zeros(1), np.array([L[0][0]]),
                     np.array([L[0][1]]), np.array([L[1][0]]), np.array([L[1][1]]), dt,
-                    mat.shear_modulus, mat.bulk_modulus, mat.alpha_phi, mat.k_c)
+                    mat.shear_modulus, mat.bulk_modulus, mat.alpha_phi, mat.k_c, 0.0, 1e9)
     return [a[0] for a in arr]
 
 
@@ -191,8 +191,9 @@ def test_leg_intrusion_lift_and_thrust_match_rft_in_magnitude(short_intrusion):
     # sides) makes SPH stiffer than the 3D experiment: ratio ~2.2 for lift here (docs/sph.md)
     assert 0.5 < sph_fz / rft_fz < 3.0
     assert 0.5 < sph_fx / rft_fx < 3.0
-    # forces grow as the leg goes deeper
-    assert ds.Fz.values[-5:].mean() > ds.Fz.values[deep][:5].mean()
+    # forces grow as the leg goes in
+    i0 = td.series.inputs_of(ds)["run"]["contact_samples"][0]
+    assert ds.Fz.values[deep].mean() > 3 * ds.Fz.values[i0:i0 + 4].mean()
 
 
 def test_lowpass_filter_is_optional_and_smooths(short_intrusion):

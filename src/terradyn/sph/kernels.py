@@ -262,8 +262,8 @@ def velocity_gradient(srt, srtk, cell_index, h, xmin, zmin, inv_cell, ncx, ncz, 
 
 @numba.njit(parallel=True, fastmath=True, cache=True)
 def accelerations(srt, srtk, cell_index, mass, h, c0, av_alpha, av_beta, av_boundary, gx, gz,
-                  hip_x, hip_z, half_t, gap, xmin, zmin, inv_cell, ncx, ncz, cell_start, ax, az,
-                  fleg, push):
+                  hip_x, hip_z, half_t, gap, max_push, xmin, zmin, inv_cell, ncx, ncz, cell_start,
+                  ax, az, fleg, push):
     """Second pass (stresses): acceleration of every granular particle and the force it exerts
     on the leg (fleg[i] = (Fx, Fz, torque about (hip_x, hip_z)), per unit depth). Artificial
     viscosity acts between granular particles, and on wall/leg pairs only if ``av_boundary``:
@@ -272,7 +272,8 @@ def accelerations(srt, srtk, cell_index, mass, h, c0, av_alpha, av_beta, av_boun
 
     Penetration guard: a granular particle closer than ``gap`` to the leg's surface (half
     thickness ``half_t`` from its centre line, seen from a guarded leg particle: not at the
-    tip) gets push[i] = the displacement back to that distance, applied after the drift."""
+    tip) gets push[i] = the displacement back towards that distance (at most ``max_push`` per
+    step), applied after the drift."""
     h2 = h * h
     sup2 = 4.0 * h2
     dwc = -5.0 * _W2D / (h2 * h2)
@@ -364,19 +365,23 @@ def accelerations(srt, srtk, cell_index, mass, h, c0, av_alpha, av_beta, av_boun
         fleg[i, 0] = fx
         fleg[i, 1] = fz
         fleg[i, 2] = tq
-        push[i, 0] = (gap - dmin) * pnx
-        push[i, 1] = (gap - dmin) * pnz
+        dp = min(gap - dmin, max_push)
+        push[i, 0] = dp * pnx
+        push[i, 1] = dp * pnz
 
 
 @numba.njit(parallel=True, fastmath=True, cache=True)
 def update_stress(rho, sxx, szz, sxz, syy, sidx, drho, lxx, lxz, lzx, lzz, dt, shear_mod,
-                  bulk_mod, alpha_phi, k_c):
+                  bulk_mod, alpha_phi, k_c, rho_min, rho_max):
     """Density and Drucker-Prager stress of the granular particles ``sidx`` over one step:
     Jaumann rate + Hooke's law (plane strain), then the Bui et al. (2008) return: tension
-    cut-off and stress scaling onto the yield surface (non-dilatant flow)."""
+    cut-off and stress scaling onto the yield surface (non-dilatant flow). The density is
+    kept in [rho_min, rho_max]: a dry packing neither compacts nor dilutes much, and grains
+    splashed off the free surface must not get tiny densities (their sigma/rho^2 would
+    explode)."""
     for kk in prange(sidx.shape[0]):
         i = sidx[kk]
-        rho[i] += dt * drho[i]
+        rho[i] = min(max(rho[i] + dt * drho[i], rho_min), rho_max)
         exx = lxx[i]
         ezz = lzz[i]
         exz = 0.5 * (lxz[i] + lzx[i])

@@ -151,12 +151,12 @@ def leg_particles(leg: Leg, dx: float, thickness: float = LEG_THICKNESS, layers:
     thickness/2 from the centre line) and going inwards (past the other surface if the leg is
     thinner than the kernel support); a side's particles interact only with material on that
     side. Returns bx, bz, bnx, bnz (outward normal of the side), dcl (offset from the centre
-    line along that normal), guard (1 except within 1.5 dx of the tip, where the side planes
-    do not bound the body), all (M,)."""
+    line along that normal), guard (1 except within 1.5 dx of either end, where the side
+    planes do not bound the body), all (M,)."""
     positive("thickness", thickness, "m")
     P, T, L = _centre_line(leg, dx)
     q = (np.arange(len(P)) + 0.5) * (L / len(P))
-    grd = (q < L - 1.5 * dx).astype(float)
+    grd = ((q < L - 1.5 * dx) & (q > 1.5 * dx)).astype(float)
     Nn = np.stack([-T[:, 1], T[:, 0]], -1)
     out = []
     for side in (1.0, -1.0):

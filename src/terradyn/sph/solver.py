@@ -190,6 +190,10 @@ class Solver:
         if scene.leg is not None:
             self.guard[self.lidx] = scene.leg.guard
             self.half_t = 0.5 * scene.leg.thickness
+        # Granular particles are kept `gap` off the leg's surface: at least dx/4, and far
+        # enough that particles on the two sides of a leg thinner than the kernel support
+        # (2h) never interact through it.
+        self.gap = max(0.25 * cfg.dx, cfg.h - self.half_t)
         self.bad = np.zeros(len(self.sidx), np.int8)
         self.h = cfg.h
         self.c0 = mat.sound_speed
@@ -272,15 +276,16 @@ class Solver:
                             self.lxx, self.lxz, self.lzx, self.lzz)
         K.update_stress(self.rho, self.sxx, self.szz, self.sxz, self.syy, self.sidx, self.drho,
                         self.lxx, self.lxz, self.lzx, self.lzz, self.dt, mat.shear_modulus,
-                        mat.bulk_modulus, mat.alpha_phi, mat.k_c)
+                        mat.bulk_modulus, mat.alpha_phi, mat.k_c, 0.9 * mat.density,
+                        1.1 * mat.density)
         self._boundaries(gx, gz)
         K.gather(self.cell_index, self.x, self.z, self.vx, self.vz, self.gvx, self.gvz, self.rho,
                  self.mass, self.kind, self.nox, self.noz, self.dcl, self.guard, self.sxx, self.szz,
                  self.sxz, self._srt, self._srtk)
         K.accelerations(self._srt, self._srtk, self.cell_index, self.mass, self.h, self.c0,
                         cfg.av_alpha, cfg.av_beta, cfg.av_boundary, gx, gz, hip_x, hip_z,
-                        self.half_t, 0.25 * cfg.dx, *grid[:6], self.ax, self.az, self.fleg,
-                        self.push)
+                        self.half_t, self.gap, 0.1 * cfg.dx, *grid[:6], self.ax, self.az,
+                        self.fleg, self.push)
         damping = self.settle_damping if self.settling else 0.0
         nbad = K.kick_drift(self.x, self.z, self.vx, self.vz, self.rho, self.sxx, self.szz,
                             self.sidx, self.ax, self.az, self.push, self.dt, damping,
