@@ -102,9 +102,10 @@ def main() -> None:
         from distributed import Client, LocalCluster
 
         with LocalCluster(n_workers=WORKERS, threads_per_worker=1, processes=True, host="127.0.0.1",
-                          dashboard_address=None) as cluster, Client(cluster) as client:
-            client.run(simulate_case, cases[0].params)  # warm: imports + kernel load
-            row("sweep, Dask local cluster", WORKERS, sw.run(spec, tmp / "dask.sweep", scheduler=cluster.scheduler_address))
+                          dashboard_address=None) as cluster:
+            with Client(cluster) as client:  # the sweep reuses this client
+                client.run(simulate_case, cases[0].params)  # warm: imports + kernel load
+                row("sweep, Dask local cluster", WORKERS, sw.run(spec, tmp / "dask.sweep", scheduler=cluster.scheduler_address))
         sph_rows = []
         if SPH:
             sspec = sw.parse(SPH_SPEC)

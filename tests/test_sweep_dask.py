@@ -175,3 +175,18 @@ def test_worker_killed_mid_sweep_does_not_lose_the_sweep(cluster, tmp_path):
         cluster.workers.remove(victim)
         cluster.add_worker()  # leave two workers for any later test
         cluster.wait_workers(2)
+
+
+def test_an_existing_client_in_the_process_is_reused(cluster, tmp_path):
+    with distributed.Client(cluster.address) as c:
+        seen = []
+        orig = c.submit
+
+        def spy(*a, **k):
+            seen.append(k.get("key"))
+            return orig(*a, **k)
+
+        c.submit = spy
+        s = sw.run(sw.parse(SMALL.replace("[6.0, 7.62]", "[5.5]")), tmp_path / "r.sweep", scheduler=cluster.address)
+        assert (s.executor, s.done) == ("dask", 3) and len(seen) == 3
+        assert c.status == "running"  # not closed by the sweep

@@ -175,10 +175,14 @@ def _dask(todo, address: str, retries: int, ck):
         from distributed import Client, as_completed as d_completed
     except ImportError:  # pragma: no cover - a dependency
         raise InputError("scheduler", "Dask execution needs dask[distributed] installed") from None
-    try:
-        client = Client(address, timeout=CONNECT_TIMEOUT)
-    except (OSError, TimeoutError) as e:
-        raise InputError("scheduler", f"cannot reach the Dask scheduler at {address!r} ({e})") from None
+    client, own = _existing_client(address), False
+    if client is None:
+        # A second Client in a process that has one (e.g. a notebook's) shares its event loop;
+        # under load we saw that corrupt a connection, so an existing client is reused above.
+        try:
+            client, own = Client(address, timeout=CONNECT_TIMEOUT), True
+        except (OSError, TimeoutError) as e:
+            raise InputError("scheduler", f"cannot reach the Dask scheduler at {address!r} ({e})") from None
     try:
         futs = {}
         for c in todo:
@@ -195,7 +199,23 @@ def _dask(todo, address: str, retries: int, ck):
                 yield cid, None, res if isinstance(res, BaseException) else RuntimeError(str(res))
             f.release()
     finally:
-        client.close()
+        if own:
+            client.close()
+
+
+def _existing_client(address: str):
+    """This process's default Dask client if it is connected to ``address``, else None."""
+    try:
+        from distributed import default_client
+
+        c = default_client()
+    except (ValueError, ImportError):
+        return None
+    try:
+        same = c.status == "running" and c.scheduler.address == address
+    except Exception:  # a closing client
+        return None
+    return c if same else None
 
 
 # ------------------------------------------------------------------------------------------
