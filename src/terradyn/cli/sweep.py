@@ -30,9 +30,12 @@ def register(app: typer.Typer) -> None:
         if as_json:
             sys.stdout.write(json.dumps([c.to_json() for c in s.cases], indent=1) + "\n")
         else:
-            sys.stdout.write(",".join(["case_id"] + s.varied) + "\n")
+            import csv
+
+            w = csv.writer(sys.stdout, lineterminator="\n")
+            w.writerow(["case_id"] + s.varied)
             for c in s.cases:
-                sys.stdout.write(",".join([c.id] + [str(c.varied[p]) for p in s.varied]) + "\n")
+                w.writerow([c.id] + [c.varied[p] for p in s.varied])
         err(f"{s.name}: {len(s.cases)} case(s), model {s.model}, varying {', '.join(s.varied) or 'nothing'}")
 
     @sw.command("run")
