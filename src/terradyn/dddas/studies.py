@@ -135,7 +135,9 @@ def legs_study(out: str | Path, data: dict | None = None, legs=LEGS, noise: floa
             source, note = "rft-standin", STANDIN_NOTE
         ds.attrs["dddas_note"] = note
         names = condition_names(ds)
-        inputs = ["omega"] if "omega" in names else names[:1]
+        # speed first: 'omega' (hand-made stacks) or 'omega_rad_s' (sweep collect)
+        speed = [n for n in ("omega", "omega_rad_s") if n in names]
+        inputs = speed[:1] if speed else names[:1]
         if not inputs:
             raise InputError("data", f"{shape}: no numeric condition coordinate along 'case'")
         est = Surrogate(inputs=inputs, energy=energy, random_state=seed)
