@@ -263,3 +263,17 @@ def test_cli_sph_run_in_air_and_bad_input(tmp_path, capsys):
     assert "Fz" in text and len(text.strip().splitlines()) >= 9
     assert main(["sph", "run", "--quick", "--omega", "-1"]) == 2
     assert "omega" in capsys.readouterr().err
+
+
+def test_grains_thrown_out_of_the_container_are_dropped_not_fatal():
+    sc = scenes.bed_scene(width=0.06, depth=0.03, dx=5e-3, settle_time=0.0)
+    s = solver.Solver(sc)
+    i = int(s.sidx[0])
+    s.x[i], s.z[i] = 0.0, -0.2  # far below the floor: it would fall for ever
+    n0 = len(s.sidx)
+    for _ in range(50):
+        s.step()
+    assert s.lost == 1 and len(s.sidx) == n0 - 1 and s.kind[i] == K.LOST
+    for _ in range(20):
+        s.step()
+    assert np.isfinite(s.x[s.sidx]).all()

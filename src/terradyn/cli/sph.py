@@ -72,7 +72,7 @@ def run_cmd(
     cfl: float = typer.Option(0.2, help="Courant number of the time step."),
     lowpass_hz: Optional[float] = typer.Option(None, help="Zero-phase Butterworth low-pass of the force record, Hz [default: none]."),
     checkpoint: Optional[Path] = typer.Option(None, help="Checkpoint file: written every minute; a rerun resumes from it."),
-    snapshots: int = typer.Option(0, help="Number of particle snapshots to keep (evenly over the contact)."),
+    snapshots: int = typer.Option(0, help="Number of particle snapshots to keep (evenly over the motion; those in the simulated contact part)."),
     snapshots_out: Optional[Path] = typer.Option(None, help="Write the snapshots here (.nc)."),
     compare_rft: bool = typer.Option(False, help="Also run RFT and print peak differences and MSE."),
     out: Optional[str] = typer.Option(None, "--out", "-o", help="Output .nc, .zarr or .csv [default: CSV on stdout]."),

@@ -51,8 +51,8 @@ def simulate(leg: Leg, motion: Rotation | PlanarMotion, medium: str | GranularMa
     force series (coordinate ``theta`` in deg for rotations, ``time`` in s otherwise) with
     Fx, Fz (N) and torque (N m) about the hip, sampled at the motion's samples from the
     per-step record (optionally low-passed, ``config.lowpass_hz``). With ``return_run`` also
-    the :class:`RunResult` (per-step forces, particle snapshots at ``snapshot_times``, s of
-    motion after the contact starts)."""
+    the :class:`RunResult` (per-step forces from the contact start; particle snapshots at
+    ``snapshot_times``: s since the motion's start, those inside the simulated part)."""
     cfg = config or default_config(quick)
     mat = _material(medium)
     positive("thickness", thickness, "m")
@@ -73,8 +73,12 @@ def simulate(leg: Leg, motion: Rotation | PlanarMotion, medium: str | GranularMa
         scene = leg_scene(leg, traj, i0, mat, bed_width=bw, bed_depth=bd, thickness=thickness,
                           config=cfg)
         duration = float(traj.time[i1] - traj.time[i0])
-        res = run(scene, duration, snapshot_times=snapshot_times, checkpoint=checkpoint,
+        offset = float(traj.time[i0] - traj.time[0])
+        snaps = [float(t) - offset for t in snapshot_times if 0 <= float(t) - offset <= duration]
+        res = run(scene, duration, snapshot_times=snaps, checkpoint=checkpoint,
                   progress=progress)
+        for sn in res.snapshots:
+            sn["time"] += offset  # back to time since the motion's start
         t_rel = traj.time[i0:i1 + 1] - traj.time[i0]
         comps = [res.Fx, res.Fz, res.torque]
         if cfg.lowpass_hz is not None:
@@ -83,7 +87,7 @@ def simulate(leg: Leg, motion: Rotation | PlanarMotion, medium: str | GranularMa
             out[i0:i1 + 1] = np.interp(t_rel, res.time, c) if len(res.time) else 0.0
         meta = {"bed_width_m": bw, "bed_depth_m": bd, "contact_samples": [int(i0), int(i1)],
                 "particles": res.particles, "steps": res.steps, "dt_s": res.dt,
-                "wall_seconds": round(res.wall_seconds, 3),
+                "wall_seconds": round(res.wall_seconds, 3), "lost_particles": int(res.lost),
                 "particle_steps_per_s": res.particles * res.steps / max(res.wall_seconds, 1e-9)}
     inputs = {"leg": leg.describe(), "motion": motion.describe(), "medium": mat.name,
               "material": mat.describe(), "sph": asdict(cfg) | {"quick": quick},

@@ -22,7 +22,8 @@ Physics (2D plane strain, per unit depth; tension-positive stress, z up):
   generalised from pressure to the stress tensor), with the gravity / wall-acceleration term.
   Leg particles belong to one side of the (thin) leg and only see material on that side.
 
-Particle kinds: 0 granular, 1 fixed wall, 2 leg (moving rigid body).
+Particle kinds: 0 granular, 1 fixed wall, 2 leg (moving rigid body), 3 lost (left the
+container; parked far away and ignored).
 """
 from __future__ import annotations
 
@@ -32,7 +33,7 @@ import numba
 import numpy as np
 from numba import prange
 
-SOIL, WALL, LEG = 0, 1, 2
+SOIL, WALL, LEG, LOST = 0, 1, 2, 3
 _W2D = 7.0 / (4.0 * math.pi)
 
 

@@ -195,6 +195,13 @@ class Solver:
         # (2h) never interact through it.
         self.gap = max(0.25 * cfg.dx, cfg.h - self.half_t)
         self.bad = np.zeros(len(self.sidx), np.int8)
+        # the container: granular particles that leave it (thrown over a wall) are dropped
+        if len(self.widx):
+            wx, wz = self.x[self.widx], self.z[self.widx]
+            self._box = (wx.min(), wx.max(), wz.min())
+        else:
+            self._box = None
+        self.lost = 0
         self.h = cfg.h
         self.c0 = mat.sound_speed
         vmax = self._max_leg_speed()
@@ -300,10 +307,30 @@ class Solver:
             raise SPHInstabilityError(self.step_count, self.t, i, (self.x[i], self.z[i]), reason)
         self.t += self.dt
         self.step_count += 1
+        if self._box is not None and self.step_count % 50 == 0:
+            self._drop_lost()
         if self.scene.leg is None:
             return (0.0, 0.0, 0.0)
         f = self.fleg.sum(axis=0)  # rows of non-granular particles stay 0
         return (float(f[0]), float(f[1]), float(f[2]))
+
+    def _drop_lost(self):
+        """Park granular particles that left the container far away as kind LOST."""
+        x0, x1, z0 = self._box
+        s = self.sidx
+        out = (self.x[s] < x0) | (self.x[s] > x1) | (self.z[s] < z0)
+        if not out.any():
+            return
+        ids = s[out]
+        self.kind[ids] = K.LOST
+        self.x[ids] = 1e3 + np.arange(len(ids))  # beyond every kernel support
+        self.z[ids] = 1e3
+        for a in (self.vx, self.vz, self.sxx, self.szz, self.sxz, self.syy, self.ax, self.az):
+            a[ids] = 0.0
+        self.fleg[ids] = 0.0
+        self.sidx = np.flatnonzero(self.kind == K.SOIL).astype(np.int64)
+        self.bad = np.zeros(len(self.sidx), np.int8)
+        self.lost += len(ids)
 
     def _boundaries(self, gx, gz):
         grid = (self.xmin, self.zmin, self.inv_cell, self.ncx, self.ncz, self.cell_start,
@@ -433,6 +460,7 @@ def run(scene: Scene, duration: float, *, snapshot_times=(), checkpoint: str | P
     res = RunResult(rec[:, 0], rec[:, 1], rec[:, 2], rec[:, 3], snaps, solver.step_count,
                     solver.dt, _time.perf_counter() - t0, solver.n)
     res.solver = solver
+    res.lost = solver.lost
     return res
 
 
