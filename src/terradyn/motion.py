@@ -53,6 +53,14 @@ class Trajectory:
                 np.cos(2 * a), np.sin(2 * a), self.angular_velocity))
         return cache[key]
 
+    @property
+    def hip_at_rest(self) -> bool:
+        """True when the hip never moves (a rotation about a fixed axis); cached."""
+        v = self.__dict__.get("_hip_at_rest")
+        if v is None:
+            v = self.__dict__["_hip_at_rest"] = not (np.any(self.hip_vx) or np.any(self.hip_vz))
+        return v
+
     def kernel_arrays3(self, dtype=np.float64) -> tuple[np.ndarray, np.ndarray]:
         """(cos 3a, sin 3a) as contiguous arrays of ``dtype`` (cached)."""
         cache = self.__dict__.setdefault("_kernel_cache", {})

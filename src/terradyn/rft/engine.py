@@ -163,7 +163,7 @@ def _fourier_kernel(sx, sz, c2b, s2b, area, inv_s, hx, hz, vhx, vhz, ang_c, ang_
 
 
 @numba.njit(parallel=True, fastmath=True, cache=True, error_model="numpy")
-def _fourier_rotation_kernel(sx, sz, area, H, hz, c1, s1, c2, s2, c3, s3, w, a00, surface,
+def _fourier_rotation_kernel(sx, sz, area, H, bound, hz, c1, s1, c2, s2, c3, s3, w, a00, surface,
                              out):  # pragma: no cover - compiled
     """Fourier fit for a rotation about a hip at rest (any angle history, any omega(t)).
 
@@ -171,7 +171,9 @@ def _fourier_rotation_kernel(sx, sz, area, H, hz, c1, s1, c2, s2, c3, s3, w, a00
     theta, 2 beta = 2 beta_body - 2 theta, and each of the fit's terms is a harmonic of theta
     of order 1, 2 or 3 with per-element amplitudes H (12, D, n) precomputed from the body
     geometry and the coefficients (see :meth:`PackedElements.harmonics`). Per element and
-    step this leaves ~30 flops: no square root, division or trigonometric call.
+    step this leaves ~30 flops: no square root, division or trigonometric call. ``bound``
+    (D, 3): a circle (centre x, z, radius) around each design's elements; a step whose circle
+    lies wholly above the surface is skipped.
     """
     D, n = sx.shape
     S = hz.shape[0]
@@ -183,6 +185,11 @@ def _fourier_rotation_kernel(sx, sz, area, H, hz, c1, s1, c2, s2, c3, s3, w, a00
         C1, S1, C2, S2, C3, S3, wj = c1[j], s1[j], c2[j], s2[j], c3[j], s3[j], w[j]
         sgn = zero if wj == zero else (one if wj > zero else -one)
         depth0 = surface - hz[j]
+        if depth0 + S1 * bound[d, 0] - C1 * bound[d, 1] + bound[d, 2] <= zero:
+            out[d, j, 0] = zero
+            out[d, j, 1] = zero
+            out[d, j, 2] = zero
+            continue
         sxd, szd, ad = sx[d], sz[d], area[d]
         z2c, z2s, z1c, z1s, z3c, z3s = H[0, d], H[1, d], H[2, d], H[3, d], H[4, d], H[5, d]
         x2c, x2s, x1c, x1s, x3c, x3s = H[6, d], H[7, d], H[8, d], H[9, d], H[10, d], H[11, d]
@@ -215,6 +222,7 @@ class PackedElements:
     s2b: np.ndarray
     area: np.ndarray
     inv_s: np.ndarray
+    bound: np.ndarray  # (D, 3): centre x, z and radius of a circle holding the elements
 
     @classmethod
     def of(cls, elements: list[Elements], dtype=np.float64) -> "PackedElements":
@@ -230,6 +238,10 @@ class PackedElements:
             r = np.hypot(e.centers[:, 0], e.centers[:, 1])
             a["inv_s"][d, :m] = np.where(r > 0, 1 / np.where(r > 0, r, 1), 0.0)
             a["area"][d, :m] = np.where(r > 0, e.areas, 0.0)  # an element on the axis never moves
+        a["bound"] = np.zeros((D, 3))
+        for d, e in enumerate(elements):
+            c = e.centers.mean(0)
+            a["bound"][d] = (*c, np.hypot(*(e.centers - c).T).max() * (1 + 1e-9) + 1e-12)
         return cls(**{k: np.ascontiguousarray(v, dtype=dtype) for k, v in a.items()})
 
     def harmonics(self, fit: FourierFit) -> np.ndarray:
@@ -237,7 +249,8 @@ class PackedElements:
         about a hip at rest (cached per fit). Order: alpha_z cos2, sin2, cos1, sin1, cos3, sin3,
         then the same for alpha_x; the order-1 and -3 terms flip sign with omega."""
         cache = self.__dict__.setdefault("_harmonics", {})
-        if fit not in cache:
+        key = id(fit)  # hashing the dataclass costs microseconds; the entry keeps fit alive
+        if key not in cache or cache[key][0] is not fit:
             A00, A10, B11, B01, Bm11, C11, C01, Cm11, D10 = fit.as_array()
             sx, sz = self.sx.astype(float), self.sz.astype(float)
             phi = np.arctan2(sx, sz)  # body direction of motion: gamma = phi + theta
@@ -250,8 +263,8 @@ class PackedElements:
                 D10 * np.sin(P2), -D10 * np.cos(P2),
                 C11 * np.cos(Q1) + C01 * np.cos(phi), C11 * np.sin(Q1) - C01 * np.sin(phi),
                 Cm11 * np.cos(Q3), -Cm11 * np.sin(Q3)])
-            cache[fit] = np.ascontiguousarray(H, dtype=self.sx.dtype)
-        return cache[fit]
+            cache[key] = (fit, np.ascontiguousarray(H, dtype=self.sx.dtype))
+        return cache[key][1]
 
 
 def _net_fourier(packed: PackedElements, traj: Trajectory, fit: FourierFit, surface: float,
@@ -259,10 +272,10 @@ def _net_fourier(packed: PackedElements, traj: Trajectory, fit: FourierFit, surf
     dt = packed.sx.dtype
     out = np.empty((packed.sx.shape[0], len(traj), 3), dtype=dt)
     hx, hz, vhx, vhz, c1, s1, c2, s2, w = traj.kernel_arrays(dt)
-    if not vhx.any() and not vhz.any():  # rotation about a hip at rest: harmonic form
+    if traj.hip_at_rest:  # rotation about a hip at rest: harmonic form
         c3, s3 = traj.kernel_arrays3(dt)
-        _fourier_rotation_kernel(packed.sx, packed.sz, packed.area, packed.harmonics(fit), hz,
-                                 c1, s1, c2, s2, c3, s3, w, dt.type(fit.A00), dt.type(surface), out)
+        _fourier_rotation_kernel(packed.sx, packed.sz, packed.area, packed.harmonics(fit),
+                                 packed.bound, hz, c1, s1, c2, s2, c3, s3, w, fit.A00, surface, out)
     else:
         _fourier_kernel(packed.sx, packed.sz, packed.c2b, packed.s2b, packed.area, packed.inv_s,
                         hx, hz, vhx, vhz, c1, s1, c2, s2, w, fit.as_array(dt), dt.type(surface), out)
