@@ -61,13 +61,15 @@ class Trajectory:
             v = self.__dict__["_hip_at_rest"] = not (np.any(self.hip_vx) or np.any(self.hip_vz))
         return v
 
-    def kernel_arrays3(self, dtype=np.float64) -> tuple[np.ndarray, np.ndarray]:
-        """(cos 3a, sin 3a) as contiguous arrays of ``dtype`` (cached)."""
+    def kernel_rotation_table(self, dtype=np.float64) -> np.ndarray:
+        """(8, S) array: hip z, cos/sin of a, 2a, 3a, angular velocity (cached)."""
         cache = self.__dict__.setdefault("_kernel_cache", {})
-        key = "3" + np.dtype(dtype).str
+        key = "rot" + np.dtype(dtype).str
         if key not in cache:
-            cache[key] = (np.ascontiguousarray(np.cos(3 * self.angle), dtype=dtype),
-                          np.ascontiguousarray(np.sin(3 * self.angle), dtype=dtype))
+            a = self.angle
+            cache[key] = np.ascontiguousarray(np.stack([
+                self.hip_z, np.cos(a), np.sin(a), np.cos(2 * a), np.sin(2 * a), np.cos(3 * a),
+                np.sin(3 * a), self.angular_velocity]), dtype=dtype)
         return cache[key]
 
 

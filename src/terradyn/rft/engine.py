@@ -163,20 +163,25 @@ def _fourier_kernel(sx, sz, c2b, s2b, area, inv_s, hx, hz, vhx, vhz, ang_c, ang_
 
 
 @numba.njit(parallel=True, fastmath=True, cache=True, error_model="numpy")
-def _fourier_rotation_kernel(sx, sz, area, H, bound, hz, c1, s1, c2, s2, c3, s3, w, a00, surface,
-                             out):  # pragma: no cover - compiled
+def _fourier_rotation_kernel(G, T, a00, surface, out):  # pragma: no cover - compiled
     """Fourier fit for a rotation about a hip at rest (any angle history, any omega(t)).
 
     For a hip at rest an element's direction of motion turns with the body, so gamma = phi +
     theta, 2 beta = 2 beta_body - 2 theta, and each of the fit's terms is a harmonic of theta
     of order 1, 2 or 3 with per-element amplitudes H (12, D, n) precomputed from the body
     geometry and the coefficients (see :meth:`PackedElements.harmonics`). Per element and
-    step this leaves ~30 flops: no square root, division or trigonometric call. ``bound``
-    (D, 3): a circle (centre x, z, radius) around each design's elements; a step whose circle
-    lies wholly above the surface is skipped.
+    step this leaves ~30 flops: no square root, division or trigonometric call.
+
+    G (16, D, n): rows 0-11 the amplitudes H, 12-14 sx, sz, area, row 15 a bounding circle
+    (centre x, z, radius in its first three columns; a step whose circle lies wholly above the
+    surface is skipped). T (8, S): hip z, cos/sin of theta, 2 theta, 3 theta, omega. Few
+    arguments keep the call overhead low for single curves.
     """
-    D, n = sx.shape
-    S = hz.shape[0]
+    D, n = G.shape[1], G.shape[2]
+    S = T.shape[1]
+    sx, sz, area = G[12], G[13], G[14]
+    hz, c1, s1, c2, s2, c3, s3, w = T[0], T[1], T[2], T[3], T[4], T[5], T[6], T[7]
+    H = G
     zero = sx.dtype.type(0.0)
     one = sx.dtype.type(1.0)
     for k in numba.prange(D * S):
@@ -185,7 +190,7 @@ def _fourier_rotation_kernel(sx, sz, area, H, bound, hz, c1, s1, c2, s2, c3, s3,
         C1, S1, C2, S2, C3, S3, wj = c1[j], s1[j], c2[j], s2[j], c3[j], s3[j], w[j]
         sgn = zero if wj == zero else (one if wj > zero else -one)
         depth0 = surface - hz[j]
-        if depth0 + S1 * bound[d, 0] - C1 * bound[d, 1] + bound[d, 2] <= zero:
+        if depth0 + S1 * G[15, d, 0] - C1 * G[15, d, 1] + G[15, d, 2] <= zero:
             out[d, j, 0] = zero
             out[d, j, 1] = zero
             out[d, j, 2] = zero
@@ -245,8 +250,9 @@ class PackedElements:
         return cls(**{k: np.ascontiguousarray(v, dtype=dtype) for k, v in a.items()})
 
     def harmonics(self, fit: FourierFit) -> np.ndarray:
-        """Per-element amplitudes (12, D, n) of the fit's harmonics in theta for a rotation
-        about a hip at rest (cached per fit). Order: alpha_z cos2, sin2, cos1, sin1, cos3, sin3,
+        """Per-element amplitudes of the fit's harmonics in theta for a rotation about a hip
+        at rest, stacked with the element data as the rotation kernel's ``G`` (16, D, n);
+        cached per fit. Order: alpha_z cos2, sin2, cos1, sin1, cos3, sin3,
         then the same for alpha_x; the order-1 and -3 terms flip sign with omega."""
         cache = self.__dict__.setdefault("_harmonics", {})
         key = id(fit)  # hashing the dataclass costs microseconds; the entry keeps fit alive
@@ -263,7 +269,10 @@ class PackedElements:
                 D10 * np.sin(P2), -D10 * np.cos(P2),
                 C11 * np.cos(Q1) + C01 * np.cos(phi), C11 * np.sin(Q1) - C01 * np.sin(phi),
                 Cm11 * np.cos(Q3), -Cm11 * np.sin(Q3)])
-            cache[key] = (fit, np.ascontiguousarray(H, dtype=self.sx.dtype))
+            bound = np.zeros_like(self.sx, dtype=float)
+            bound[:, :3] = self.bound
+            G = np.concatenate([H, self.sx[None], self.sz[None], self.area[None], bound[None]])
+            cache[key] = (fit, np.ascontiguousarray(G, dtype=self.sx.dtype))
         return cache[key][1]
 
 
@@ -273,9 +282,8 @@ def _net_fourier(packed: PackedElements, traj: Trajectory, fit: FourierFit, surf
     out = np.empty((packed.sx.shape[0], len(traj), 3), dtype=dt)
     hx, hz, vhx, vhz, c1, s1, c2, s2, w = traj.kernel_arrays(dt)
     if traj.hip_at_rest:  # rotation about a hip at rest: harmonic form
-        c3, s3 = traj.kernel_arrays3(dt)
-        _fourier_rotation_kernel(packed.sx, packed.sz, packed.area, packed.harmonics(fit),
-                                 packed.bound, hz, c1, s1, c2, s2, c3, s3, w, fit.A00, surface, out)
+        _fourier_rotation_kernel(packed.harmonics(fit), traj.kernel_rotation_table(dt), fit.A00,
+                                 surface, out)
     else:
         _fourier_kernel(packed.sx, packed.sz, packed.c2b, packed.s2b, packed.area, packed.inv_s,
                         hx, hz, vhx, vhz, c1, s1, c2, s2, w, fit.as_array(dt), dt.type(surface), out)
