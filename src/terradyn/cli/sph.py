@@ -85,17 +85,14 @@ def run_cmd(
     import numpy as np
 
     from .. import io
-    from ..geometry import make_leg, read_leg_csv
-    from ..motion import Rotation, read_motion_csv
+    from ..api import leg_from_field_units, motion_from_field_units
     from ..sph import SPHInstabilityError, simulate, snapshots_dataset
-    from ..units import CM, DEG
+    from ..units import CM
     from . import err
 
-    w = (width_cm if width_cm is not None else 2.54) * CM
-    shape = (read_leg_csv(leg_file, w) if leg_file is not None else
-             make_leg(leg.value, None if length_cm is None else length_cm * CM, w, 100, curvature))
-    motion = (read_motion_csv(motion_file) if motion_file is not None else
-              Rotation(omega, hip_height_cm * CM, theta_start_deg * DEG, theta_end_deg * DEG, n_theta))
+    shape = leg_from_field_units(leg.value, leg_file, curvature, length_cm, width_cm)
+    motion = motion_from_field_units(False, motion_file, omega, hip_height_cm, theta_start_deg,
+                                     theta_end_deg, n_theta)
     cfg = _config(quick, dx_mm, cfl, lowpass_hz)
     traj = motion.trajectory()
     snap_t = np.linspace(0, traj.time[-1] - traj.time[0], snapshots) if snapshots else ()
