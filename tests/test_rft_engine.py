@@ -95,6 +95,23 @@ def test_compiled_kernel_matches_numpy_for_any_leg_and_motion():
             np.testing.assert_allclose(x, y, atol=1e-12, rtol=1e-10)
 
 
+def test_an_element_on_the_hip_is_loaded_only_when_the_hip_moves():
+    from terradyn.geometry import Elements
+
+    el = Elements(np.array([[0.0, 0.0], [0.0, -0.02]]), np.array([[0.0, 1.0], [0.0, 1.0]]),
+                  np.full(2, 0.01), np.full(2, 1e-4))
+    moving = PlanarMotion(np.linspace(0, 1, 5), np.zeros(5), np.full(5, -0.03), np.zeros(5),
+                          hip_vx=np.full(5, 0.01), hip_vz=np.zeros(5), angular_velocity=np.full(5, 0.3))
+    for tr in (moving.trajectory(), td.Rotation(0.3, -0.03, -0.2, 0.2, 5).trajectory()):
+        for x, y in zip(net_forces(el, tr, FIT), _net_numpy(el, tr, FIT, 0.0)):
+            np.testing.assert_allclose(x, y, atol=1e-12, rtol=1e-10)
+    # the hip element carries load when the hip slides, none in a pure rotation
+    one = Elements(el.centers[:1], el.tangents[:1], el.lengths[:1], el.areas[:1])
+    assert abs(net_forces(one, moving.trajectory(), FIT)[1]).min() > 0
+    rot = td.Rotation(0.3, -0.03, -0.2, 0.2, 5).trajectory()
+    assert not np.any(net_forces(one, rot, FIT)[1])
+
+
 def test_batch_matches_single_designs_in_both_precisions():
     rot = td.standard_rotation(91).trajectory()
     legs = [ArcLeg(2.54 * CM, n, 7.62 * CM, k) for n, k in zip((10, 50, 100), (-1, 0.2, 1))]

@@ -105,14 +105,13 @@ def _alpha(coef, c2, s2, cg, sg):  # pragma: no cover - compiled
 
 
 @numba.njit(parallel=True, fastmath=True, cache=True, error_model="numpy")
-def _fourier_kernel(sx, sz, c2b, s2b, area, inv_s, hx, hz, vhx, vhz, ang_c, ang_s, c2t, s2t, w,
+def _fourier_kernel(sx, sz, c2b, s2b, area, hx, hz, vhx, vhz, ang_c, ang_s, c2t, s2t, w,
                     coef, surface, out):  # pragma: no cover - compiled
-    """sx, sz, c2b, s2b, area, inv_s: (D, n) body-frame element data (zero area pads);
-    trajectory arrays (S,); coef (9,) N/m^3; out (D, S, 3): Fx, Fz, torque.
+    """Fourier fit for any planar motion (the hip may move).
 
-    Generic in the float type: every constant takes the type of ``sx``. When the hip is at
-    rest the element speed is |omega| |s|, so 1/|v| comes from the precomputed 1/|s| (no
-    square root); otherwise from the velocity itself.
+    sx, sz, c2b, s2b, area: (D, n) body-frame element data (zero area pads); trajectory
+    arrays (S,); coef (9,) N/m^3; out (D, S, 3): Fx, Fz, torque. Generic in the float type:
+    every constant takes the type of ``sx``. One square root per element for 1/|v|.
     """
     D, n = sx.shape
     S = hx.shape[0]
@@ -125,38 +124,24 @@ def _fourier_kernel(sx, sz, c2b, s2b, area, inv_s, hx, hz, vhx, vhz, ang_c, ang_
         c, s, cc, ss, wj = ang_c[j], ang_s[j], c2t[j], s2t[j], w[j]
         ux, uz = vhx[j], vhz[j]
         depth0 = surface - hz[j]
-        sxd, szd, c2d, s2d, ad, isd = sx[d], sz[d], c2b[d], s2b[d], area[d], inv_s[d]
+        sxd, szd, c2d, s2d, ad = sx[d], sz[d], c2b[d], s2b[d], area[d]
         fx_sum = zero
         fz_sum = zero
         tq_sum = zero
-        if ux == zero and uz == zero:
-            # Hip at rest: v = w (rz, -rx), |v| = |w| |s|.
-            sgn = zero if wj == zero else (one if wj > zero else -one)
-            for i in range(n):
-                rx = c * sxd[i] + s * szd[i]
-                rz = -s * sxd[i] + c * szd[i]
-                c2 = c2d[i] * cc + s2d[i] * ss  # 2 beta = 2 beta_body - 2 theta
-                s2 = s2d[i] * cc - c2d[i] * ss
-                ax, az = _alpha(coef, c2, s2, sgn * rz * isd[i], sgn * rx * isd[i])
-                load = max(depth0 - rz, zero) * ad[i] * sgn * sgn
-                fx_sum -= ax * load
-                fz_sum += az * load
-                tq_sum += (rx * az + rz * ax) * load
-        else:
-            for i in range(n):
-                rx = c * sxd[i] + s * szd[i]
-                rz = -s * sxd[i] + c * szd[i]
-                vx = ux + wj * rz
-                vz = uz - wj * rx
-                v2 = vx * vx + vz * vz
-                inv = one / np.sqrt(v2 + rest * rest)
-                c2 = c2d[i] * cc + s2d[i] * ss
-                s2 = s2d[i] * cc - c2d[i] * ss
-                ax, az = _alpha(coef, c2, s2, vx * inv, -vz * inv)
-                load = max(depth0 - rz, zero) * (ad[i] if v2 > rest else zero)
-                fx_sum -= ax * load
-                fz_sum += az * load
-                tq_sum += (rx * az + rz * ax) * load
+        for i in range(n):
+            rx = c * sxd[i] + s * szd[i]
+            rz = -s * sxd[i] + c * szd[i]
+            vx = ux + wj * rz
+            vz = uz - wj * rx
+            v2 = vx * vx + vz * vz
+            inv = one / np.sqrt(v2 + rest * rest)
+            c2 = c2d[i] * cc + s2d[i] * ss  # 2 beta = 2 beta_body - 2 theta
+            s2 = s2d[i] * cc - c2d[i] * ss
+            ax, az = _alpha(coef, c2, s2, vx * inv, -vz * inv)
+            load = max(depth0 - rz, zero) * (ad[i] if v2 > rest else zero)
+            fx_sum -= ax * load
+            fz_sum += az * load
+            tq_sum += (rx * az + rz * ax) * load
         out[d, j, 0] = fx_sum
         out[d, j, 1] = fz_sum
         out[d, j, 2] = tq_sum
@@ -226,23 +211,20 @@ class PackedElements:
     c2b: np.ndarray
     s2b: np.ndarray
     area: np.ndarray
-    inv_s: np.ndarray
     bound: np.ndarray  # (D, 3): centre x, z and radius of a circle holding the elements
 
     @classmethod
     def of(cls, elements: list[Elements], dtype=np.float64) -> "PackedElements":
         D = len(elements)
         n = max(len(e) for e in elements)
-        a = {k: np.zeros((D, n)) for k in ("sx", "sz", "c2b", "s2b", "area", "inv_s")}
+        a = {k: np.zeros((D, n)) for k in ("sx", "sz", "c2b", "s2b", "area")}
         for d, e in enumerate(elements):
             m = len(e)
             a["sx"][d, :m], a["sz"][d, :m] = e.centers[:, 0], e.centers[:, 1]
             tx, tz = e.tangents[:, 0], e.tangents[:, 1]
             a["c2b"][d, :m] = tx * tx - tz * tz
             a["s2b"][d, :m] = 2 * tx * tz
-            r = np.hypot(e.centers[:, 0], e.centers[:, 1])
-            a["inv_s"][d, :m] = np.where(r > 0, 1 / np.where(r > 0, r, 1), 0.0)
-            a["area"][d, :m] = np.where(r > 0, e.areas, 0.0)  # an element on the axis never moves
+            a["area"][d, :m] = e.areas
         a["bound"] = np.zeros((D, 3))
         for d, e in enumerate(elements):
             c = e.centers.mean(0)
@@ -269,9 +251,13 @@ class PackedElements:
                 D10 * np.sin(P2), -D10 * np.cos(P2),
                 C11 * np.cos(Q1) + C01 * np.cos(phi), C11 * np.sin(Q1) - C01 * np.sin(phi),
                 Cm11 * np.cos(Q3), -Cm11 * np.sin(Q3)])
-            bound = np.zeros_like(self.sx, dtype=float)
-            bound[:, :3] = self.bound
-            G = np.concatenate([H, self.sx[None], self.sz[None], self.area[None], bound[None]])
+            # An element on the rotation axis never moves: no RFT force in a rotation.
+            area = np.where(np.hypot(sx, sz) > 0, self.area, 0.0)
+            D, n = sx.shape
+            G = np.zeros((16, D, max(n, 3)))  # zero-area padding holds the bound's 3 numbers
+            G[:12, :, :n] = H
+            G[12, :, :n], G[13, :, :n], G[14, :, :n] = sx, sz, area
+            G[15, :, :3] = self.bound
             cache[key] = (fit, np.ascontiguousarray(G, dtype=self.sx.dtype))
         return cache[key][1]
 
@@ -285,8 +271,7 @@ def _net_fourier(packed: PackedElements, traj: Trajectory, fit: FourierFit, surf
         _fourier_rotation_kernel(packed.harmonics(fit), traj.kernel_rotation_table(dt), fit.A00,
                                  surface, out)
     else:
-        _fourier_kernel(packed.sx, packed.sz, packed.c2b, packed.s2b, packed.area, packed.inv_s,
-                        hx, hz, vhx, vhz, c1, s1, c2, s2, w, fit.as_array(dt), dt.type(surface), out)
+        _fourier_kernel(packed.sx, packed.sz, packed.c2b, packed.s2b, packed.area, hx, hz, vhx, vhz, c1, s1, c2, s2, w, fit.as_array(dt), dt.type(surface), out)
     return out
 
 
