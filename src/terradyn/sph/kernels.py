@@ -369,6 +369,8 @@ def accelerations(srt, srtk, cell_index, mass, h, c0, av_alpha, av_beta, av_boun
         dp = min(gap - dmin, max_push)
         push[i, 0] = dp * pnx
         push[i, 1] = dp * pnz
+        push[i, 2] = pnx  # (0, 0) unless the particle is in contact with the leg
+        push[i, 3] = pnz
 
 
 @numba.njit(parallel=True, fastmath=True, cache=True)
@@ -429,15 +431,37 @@ def update_stress(rho, sxx, szz, sxz, syy, sidx, drho, lxx, lxz, lzx, lzz, dt, s
 
 
 @numba.njit(parallel=True, cache=True)  # no fastmath: it would assume away the NaN checks
-def kick_drift(x, z, vx, vz, rho, sxx, szz, sidx, ax, az, push, dt, damping, vmax_allowed, bad):
+def kick_drift(x, z, vx, vz, rho, sxx, szz, sidx, ax, az, push, dt, damping, vmax_allowed, bad,
+               mass, fleg, hip_x, hip_z, hip_vx, hip_vz, omega):
     """v += dt a (optionally damped), x += dt v for the granular particles ``sidx``. Returns the
-    number of particles that went non-finite or faster than ``vmax_allowed`` (``bad`` flags)."""
+    number of particles that went non-finite or faster than ``vmax_allowed`` (``bad`` flags).
+
+    Contact with the leg: a particle inside the penetration guard's distance (push[i, 2:4] =
+    the leg's outward normal n there, else 0) loses the part of its velocity that moves it
+    into the leg, relative to the leg's rigid velocity at its position (an inelastic contact,
+    as for a grain hitting a rigid plate), and the momentum it loses, m (v.n) n / dt, is added
+    to the force it exerts on the leg (fleg), so the guard never takes momentum out of the
+    balance unrecorded. The leg turns clockwise at ``omega`` about (hip_x, hip_z)."""
     nbad = 0
     fdamp = 1.0 / (1.0 + damping * dt)
     for kk in prange(sidx.shape[0]):
         i = sidx[kk]
         nvx = (vx[i] + dt * ax[i]) * fdamp
         nvz = (vz[i] + dt * az[i]) * fdamp
+        nx = push[i, 2]
+        nz = push[i, 3]
+        if nx != 0.0 or nz != 0.0:
+            rx = x[i] - hip_x
+            rz = z[i] - hip_z
+            vn = (nvx - hip_vx - omega * rz) * nx + (nvz - hip_vz + omega * rx) * nz
+            if vn < 0.0:
+                nvx -= vn * nx
+                nvz -= vn * nz
+                fx = mass[i] * vn * nx / dt
+                fz = mass[i] * vn * nz / dt
+                fleg[i, 0] += fx
+                fleg[i, 1] += fz
+                fleg[i, 2] += rx * fz - rz * fx
         vx[i] = nvx
         vz[i] = nvz
         x[i] += dt * nvx + push[i, 0]

@@ -184,7 +184,7 @@ class Solver:
         self.fleg = np.zeros((n, 3))
         self._srt = np.zeros((11, n))
         self._srtk = np.zeros((3, n))
-        self.push = np.zeros((n, 2))
+        self.push = np.zeros((n, 4))
         self.guard = np.zeros(n)
         self.half_t = 0.0
         if scene.leg is not None:
@@ -270,7 +270,8 @@ class Solver:
         cfg = self.scene.config
         gx, gz = self.scene.gravity
         pose = self.place_leg()
-        hip_x, hip_z = (pose[0], pose[1]) if pose is not None else (0.0, 0.0)
+        hip_x, hip_z, hip_vx, hip_vz = pose[:4] if pose is not None else (0.0,) * 4
+        omega = pose[7] if pose is not None else 0.0
         K.bin_particles(self.x, self.z, self.xmin, self.zmin, self.inv_cell, self.ncx, self.ncz,
                         self.cell_start, self.cell_index)
         grid = (self.xmin, self.zmin, self.inv_cell, self.ncx, self.ncz, self.cell_start,
@@ -296,8 +297,8 @@ class Solver:
         damping = self.settle_damping if self.settling else 0.0
         nbad = K.kick_drift(self.x, self.z, self.vx, self.vz, self.rho, self.sxx, self.szz,
                             self.sidx, self.ax, self.az, self.push, self.dt, damping,
-                            self.vmax_allowed,
-                            self.bad)
+                            self.vmax_allowed, self.bad, self.mass, self.fleg, hip_x, hip_z,
+                            hip_vx, hip_vz, omega)
         if nbad:
             k = int(np.argmax(self.bad))
             i = int(self.sidx[k])
