@@ -179,12 +179,9 @@ class Solver:
             if len(self.lidx) != len(scene.leg.bx):
                 raise InputError("scene", "leg particle count does not match the rigid body")
             self.dcl[self.lidx] = scene.leg.dcl
-        for name in ("ax", "az", "drho", "lxx", "lxz", "lzx", "lzz"):
-            setattr(self, name, np.zeros(n))
         self.fleg = np.zeros((n, 3))
         self._srt = np.zeros((11, n))
         self._srtk = np.zeros((3, n))
-        self.push = np.zeros((n, 4))
         self.guard = np.zeros(n)
         self.half_t = 0.0
         if scene.leg is not None:
@@ -194,7 +191,7 @@ class Solver:
         # enough that particles on the two sides of a leg thinner than the kernel support
         # (2h) never interact through it.
         self.gap = max(0.25 * cfg.dx, cfg.h - self.half_t)
-        self.bad = np.zeros(len(self.sidx), np.int8)
+        self.bad = np.zeros(n, np.int8)
         # the container: granular particles that leave it (thrown over a wall) are dropped
         if len(self.widx):
             wx, wz = self.x[self.widx], self.z[self.widx]
@@ -228,7 +225,7 @@ class Solver:
         return float(np.max(np.hypot(tr.hip_vx, tr.hip_vz) + np.abs(tr.angular_velocity) * r))
 
     def _grid(self):
-        cell = 2.0 * self.h
+        cell = 2.0 * self.h / K.REACH
         xs = [self.x.min(), self.x.max()]
         zs = [self.z.min(), self.z.max()]
         leg = self.scene.leg
@@ -280,28 +277,22 @@ class Solver:
         K.gather(self.cell_index, self.x, self.z, self.vx, self.vz, self.gvx, self.gvz, self.rho,
                  self.mass, self.kind, self.nox, self.noz, self.dcl, self.guard, self.sxx, self.szz,
                  self.sxz, self._srt, self._srtk)
-        K.velocity_gradient(self._srt, self._srtk, self.cell_index, self.h, *grid[:6], self.drho,
-                            self.lxx, self.lxz, self.lzx, self.lzz)
-        K.update_stress(self.rho, self.sxx, self.szz, self.sxz, self.syy, self.sidx, self.drho,
-                        self.lxx, self.lxz, self.lzx, self.lzz, self.dt, mat.shear_modulus,
+        K.strain_stress(self._srt, self._srtk, self.cell_index, self.h, *grid[:6], self.rho,
+                        self.sxx, self.szz, self.sxz, self.syy, self.dt, mat.shear_modulus,
                         mat.bulk_modulus, mat.alpha_phi, mat.k_c, 0.9 * mat.density,
                         1.1 * mat.density)
         self._boundaries(gx, gz)
-        K.gather(self.cell_index, self.x, self.z, self.vx, self.vz, self.gvx, self.gvz, self.rho,
-                 self.mass, self.kind, self.nox, self.noz, self.dcl, self.guard, self.sxx, self.szz,
-                 self.sxz, self._srt, self._srtk)
-        K.accelerations(self._srt, self._srtk, self.cell_index, self.mass, self.h, self.c0,
-                        cfg.av_alpha, cfg.av_beta, cfg.av_boundary, gx, gz, hip_x, hip_z,
-                        self.half_t, self.gap, 0.1 * cfg.dx, *grid[:6], self.ax, self.az,
-                        self.fleg, self.push)
+        K.regather(self.cell_index, self.vx, self.vz, self.gvx, self.gvz, self.rho, self.mass,
+                   self.kind, self.sxx, self.szz, self.sxz, self._srt)
         damping = self.settle_damping if self.settling else 0.0
-        nbad = K.kick_drift(self.x, self.z, self.vx, self.vz, self.rho, self.sxx, self.szz,
-                            self.sidx, self.ax, self.az, self.push, self.dt, damping,
-                            self.vmax_allowed, self.bad, self.mass, self.fleg, hip_x, hip_z,
-                            hip_vx, hip_vz, omega)
+        nbad = K.accelerations_kick(
+            self._srt, self._srtk, self.cell_index, self.mass, self.h, self.c0, cfg.av_alpha,
+            cfg.av_beta, cfg.av_boundary, gx, gz, hip_x, hip_z, hip_vx, hip_vz, omega,
+            self.half_t, self.gap, 0.1 * cfg.dx, *grid[:6], self.x, self.z, self.vx, self.vz,
+            self.rho, self.sxx, self.szz, self.dt, damping, self.vmax_allowed, self.fleg,
+            self.bad)
         if nbad:
-            k = int(np.argmax(self.bad))
-            i = int(self.sidx[k])
+            i = int(np.argmax(self.bad))
             finite = np.isfinite([self.x[i], self.z[i], self.sxx[i], self.szz[i], self.rho[i]]).all()
             reason = (f"speed {math.hypot(self.vx[i], self.vz[i]):.3g} m/s exceeds the sound speed "
                       f"{self.c0:.3g} m/s" if finite else "non-finite position, density or stress")
@@ -326,11 +317,10 @@ class Solver:
         self.kind[ids] = K.LOST
         self.x[ids] = 1e3 + np.arange(len(ids))  # beyond every kernel support
         self.z[ids] = 1e3
-        for a in (self.vx, self.vz, self.sxx, self.szz, self.sxz, self.syy, self.ax, self.az):
+        for a in (self.vx, self.vz, self.sxx, self.szz, self.sxz, self.syy):
             a[ids] = 0.0
         self.fleg[ids] = 0.0
         self.sidx = np.flatnonzero(self.kind == K.SOIL).astype(np.int64)
-        self.bad = np.zeros(len(self.sidx), np.int8)
         self.lost += len(ids)
 
     def _boundaries(self, gx, gz):
