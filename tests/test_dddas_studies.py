@@ -2,9 +2,11 @@
 import json
 
 import numpy as np
+import pytest
 
 import terradyn as td
 from terradyn.dddas import studies
+from terradyn.errors import InputError
 
 THETA = np.linspace(-135.0, 135.0, 91)
 
@@ -61,3 +63,22 @@ def test_foot_study_assimilation_moves_towards_the_trial(tmp_path):
     assert m["pf"]["Fz"] < 0.1 * m["prior"]["Fz"]
     assert m["pf"]["Fx"] < m["prior"]["Fx"]  # Fx was never observed: corrected through the basis
     assert (tmp_path / "foot_trial.csv").read_text().startswith("# SYNTHETIC")
+
+
+def test_one_dataset_for_all_legs_is_split_by_its_shape_coordinate():
+    """`terradyn sweep collect` stacks all legs along case with a 'shape' coordinate."""
+    import xarray as xr
+
+    from terradyn.dddas.studies import rft_standin, split_by_leg
+
+    a = rft_standin("flat", hip_heights_cm=[1.0, 2.0, 3.0], n_theta=31)
+    b = rft_standin("c", hip_heights_cm=[1.0, 2.0], n_theta=31)
+    both = xr.concat([a.assign_coords(shape=("case", ["flat"] * 3)),
+                      b.assign_coords(shape=("case", ["c"] * 2))], dim="case")
+    parts = split_by_leg(both)
+    assert sorted(parts) == ["c", "flat"]
+    assert parts["flat"].sizes["case"] == 3 and parts["c"].sizes["case"] == 2
+    assert "shape" not in parts["c"].coords
+    np.testing.assert_array_equal(parts["c"].Fz.values, b.Fz.values)
+    with pytest.raises(InputError, match="shape"):
+        split_by_leg(a)

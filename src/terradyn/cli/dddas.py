@@ -173,7 +173,7 @@ def register(app: typer.Typer) -> None:
     def study(
         which: Study = typer.Argument(..., help="legs: three legs across ten conditions; foot: human-sized foot."),
         out: Path = typer.Option(Path("results/dddas"), "--out", "-o", help="Output folder."),
-        data: List[str] = typer.Option([], "--data", help="legs: LEG=FILE stacked dataset (e.g. SPH at ten speeds); default RFT stand-in."),
+        data: List[str] = typer.Option([], "--data", help="legs: LEG=FILE stacked dataset (e.g. SPH at ten speeds), or FILE stacking all legs with a 'shape' coordinate (datasets/sph_legs_speeds.nc); default RFT stand-in."),
         trial: Optional[Path] = typer.Option(None, help="foot: trial CSV [default: a synthetic trial]."),
         particles: int = typer.Option(5000, help="Number of particles."),
         seed: int = typer.Option(0, help="Random seed."),
@@ -185,9 +185,7 @@ def register(app: typer.Typer) -> None:
         if which.value == "legs":
             d = {}
             for item in data:
-                if "=" not in item:
-                    raise InputError("data", f"expected LEG=FILE, got {item!r}")
-                k, v = item.split("=", 1)
+                k, v = item.split("=", 1) if "=" in item else ("all", item)
                 d[k] = v
             s = studies.legs_study(out, d, particles=particles, seed=seed, progress=_err)
         else:

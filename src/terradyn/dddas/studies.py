@@ -69,6 +69,30 @@ def _load(data) -> xr.Dataset:
     return io.read(data)
 
 
+def split_by_leg(data) -> dict:
+    """``data`` as a mapping leg shape -> dataset. A dataset (or file) stacking several legs
+    along ``case`` with a ``shape`` coordinate (what ``terradyn sweep collect`` writes for
+    ``datasets/sph_legs_speeds.toml``), given alone or under the key ``"all"``, is split into
+    one dataset per leg."""
+    if data is None:
+        return {}
+    if not isinstance(data, dict):
+        data = {"all": data}
+    data = dict(data)
+    if "all" not in data:
+        return data
+    ds = _load(data.pop("all"))
+    if "shape" not in ds.coords or "case" not in ds["shape"].dims:
+        raise InputError("data", "a dataset for all legs needs a 'shape' coordinate along 'case' "
+                                 "(as written by `terradyn sweep collect`); else give LEG=FILE")
+    shapes = [str(v) for v in ds["shape"].values]
+    for shape in dict.fromkeys(shapes):
+        if shape not in data:
+            part = ds.isel(case=[i for i, v in enumerate(shapes) if v == shape]).drop_vars("shape")
+            data[shape] = part.assign_coords(case=np.arange(part.sizes["case"]))
+    return data
+
+
 def _assimilation_run(sur: Surrogate, cond: dict, obs: xr.Dataset, obs_std: dict, particles: int,
                       seed: int, resample: str = "systematic", prior_floor: float = 1.0,
                       jitter_floor: float = 0.0):
@@ -114,7 +138,7 @@ def legs_study(out: str | Path, data: dict | None = None, legs=LEGS, noise: floa
     out.mkdir(parents=True, exist_ok=True)
     noise = positive("noise", noise)
     obs_every = integer("obs-every", obs_every, 1)
-    data = dict(data or {})
+    data = split_by_leg(data)
     unknown = [k for k in data if k not in LEGS]
     if unknown:
         raise InputError("data", f"unknown leg(s) {unknown}; allowed: {', '.join(LEGS)}")
