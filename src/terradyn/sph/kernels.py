@@ -24,6 +24,13 @@ Physics (2D plane strain, per unit depth; tension-positive stress, z up):
 
 Particle kinds: 0 granular, 1 fixed wall, 2 leg (moving rigid body), 3 lost (left the
 container; parked far away and ignored).
+
+One source for CPU and GPU: the work of one particle is a plain Python function of (index,
+arrays..., scalars) that allocates nothing (``_boundary_one``, ``_gather_one``,
+``_strain_stress_one``, ``_accel_kick_one``, ...; registered in :data:`SOURCES`). Here each
+is compiled as an inlined ``numba.njit`` function and called from the ``prange`` loops of the
+CPU kernels; :mod:`terradyn.sph.gpu` compiles the very same functions as CUDA device
+functions called from one-thread-per-particle kernels.
 """
 from __future__ import annotations
 
@@ -42,7 +49,22 @@ REACH = 2
 _FM = {"nsz", "arcp", "contract", "afn", "reassoc"}  # fastmath that keeps NaN/inf checks
 
 
-@numba.njit(inline="always", fastmath=True)
+#: The one source of the per-particle work: plain Python functions of (index, arrays...,
+#: scalars) that allocate nothing. Each is compiled here as an inlined ``numba.njit``
+#: function that the multi-threaded CPU kernels below call from their ``prange`` loops, and
+#: again by :mod:`terradyn.sph.gpu` as a CUDA device function that its one-thread-per-particle
+#: kernels call (same code, names re-bound to the device versions). name -> plain function.
+SOURCES: dict = {}
+
+
+def _source(fn):
+    """Register ``fn`` as one-source kernel code; returns its CPU (inlined njit) form. The
+    fastmath flags are those of the calling kernel (Numba inlines at the IR level)."""
+    SOURCES[fn.__name__] = fn
+    return numba.njit(inline="always", fastmath=True)(fn)
+
+
+@_source
 def wendland_dw(r, h):
     """(1/r) dW/dr of the 2D Wendland C2 kernel: -35 / (4 pi h^4) (1 - q/2)^3 (0 outside)."""
     q = r / h
@@ -52,7 +74,7 @@ def wendland_dw(r, h):
     return -5.0 * _W2D / (h * h * h * h) * t * t * t
 
 
-@numba.njit(inline="always", fastmath=True)
+@_source
 def wendland_w(r, h):
     q = r / h
     if q >= 2.0:
@@ -61,376 +83,15 @@ def wendland_w(r, h):
     return _W2D / (h * h) * t * t * t * t * (2.0 * q + 1.0)
 
 
-@numba.njit(cache=True)
-def bin_particles(x, z, xmin, zmin, inv_cell, ncx, ncz, cell_start, cell_index):
-    """Counting sort of particles into square cells (side = kernel support).
-
-    cell_start: (ncx*ncz + 1,) int64 offsets; cell_index: (N,) particle ids sorted by cell.
-    Particles outside the grid are clamped into the edge cells (still correct: every pair is
-    tested by distance)."""
-    n = x.shape[0]
-    nc = ncx * ncz
-    cell_of = np.empty(n, np.int64)
-    for k in range(nc + 1):
-        cell_start[k] = 0
-    for i in range(n):
-        cx = int((x[i] - xmin) * inv_cell)
-        cz = int((z[i] - zmin) * inv_cell)
-        cx = min(max(cx, 0), ncx - 1)
-        cz = min(max(cz, 0), ncz - 1)
-        c = cz * ncx + cx
-        cell_of[i] = c
-        cell_start[c + 1] += 1
-    for k in range(nc):
-        cell_start[k + 1] += cell_start[k]
-    fill = cell_start[:-1].copy()
-    for i in range(n):
-        c = cell_of[i]
-        cell_index[fill[c]] = i
-        fill[c] += 1
+@_source
+def _cell_of(xi, zi, xmin, zmin, inv_cell, ncx, ncz):
+    """Cell id of a point; points outside the grid are clamped into the edge cells."""
+    cx = min(max(int((xi - xmin) * inv_cell), 0), ncx - 1)
+    cz = min(max(int((zi - zmin) * inv_cell), 0), ncz - 1)
+    return cz * ncx + cx
 
 
-@numba.njit(parallel=True, fastmath=True, cache=True)
-def boundary_state(x, z, vx, vz, rho, mass, kind, nox, noz, dcl, sxx, szz, sxz, syy,
-                   gvx, gvz, bidx, acc_x, acc_z, gx, gz, h,
-                   xmin, zmin, inv_cell, ncx, ncz, cell_start, cell_index, noslip):
-    """Stress and ghost velocity of every boundary particle (ids ``bidx``) from the granular
-    particles around it (Shepard average + hydrostatic term). acc_x/acc_z: (N,) wall
-    accelerations. ``noslip``: ghost velocity 2 v_w - <v>; else <v> (free slip)."""
-    for kk in prange(bidx.shape[0]):
-        w = bidx[kk]
-        xw = x[w]
-        zw = z[w]
-        cx = min(max(int((xw - xmin) * inv_cell), 0), ncx - 1)
-        cz = min(max(int((zw - zmin) * inv_cell), 0), ncz - 1)
-        ssum = 0.0
-        axx = 0.0
-        azz = 0.0
-        axz = 0.0
-        ayy = 0.0
-        avx = 0.0
-        avz = 0.0
-        hyd = 0.0
-        isleg = kind[w] == LEG
-        ex = gx - acc_x[w]
-        ez = gz - acc_z[w]
-        for dz in range(-REACH, REACH + 1):
-            iz = cz + dz
-            if iz < 0 or iz >= ncz:
-                continue
-            for dxc in range(-REACH, REACH + 1):
-                ix = cx + dxc
-                if ix < 0 or ix >= ncx:
-                    continue
-                c = iz * ncx + ix
-                for p in range(cell_start[c], cell_start[c + 1]):
-                    f = cell_index[p]
-                    if kind[f] != SOIL:
-                        continue
-                    rx = xw - x[f]
-                    rz = zw - z[f]
-                    if isleg and (-rx * nox[w] - rz * noz[w] + dcl[w]) <= 0.0:
-                        continue
-                    r = math.sqrt(rx * rx + rz * rz)
-                    wgt = wendland_w(r, h)
-                    if wgt == 0.0:
-                        continue
-                    ssum += wgt
-                    axx += sxx[f] * wgt
-                    azz += szz[f] * wgt
-                    axz += sxz[f] * wgt
-                    ayy += syy[f] * wgt
-                    avx += vx[f] * wgt
-                    avz += vz[f] * wgt
-                    hyd += rho[f] * (ex * rx + ez * rz) * wgt
-        if ssum > 0.0:
-            inv = 1.0 / ssum
-            # p_w = <p> + rho (g - a_w).(x_w - x_f) (Adami 2012); sigma = -p I, tension
-            # positive: a wall below the material carries more compression.
-            p_add = -hyd * inv
-            sxx[w] = axx * inv + p_add
-            szz[w] = azz * inv + p_add
-            syy[w] = ayy * inv + p_add
-            sxz[w] = axz * inv
-            if noslip:
-                gvx[w] = 2.0 * vx[w] - avx * inv
-                gvz[w] = 2.0 * vz[w] - avz * inv
-            else:
-                gvx[w] = avx * inv
-                gvz[w] = avz * inv
-        else:
-            sxx[w] = 0.0
-            szz[w] = 0.0
-            syy[w] = 0.0
-            sxz[w] = 0.0
-            gvx[w] = vx[w]
-            gvz[w] = vz[w]
-
-
-@numba.njit(parallel=True, fastmath=True, cache=True)
-def gather(cell_index, x, z, vx, vz, gvx, gvz, rho, mass, kind, nox, noz, dcl, guard, sxx, szz,
-           sxz, out_f, out_k):
-    """Copy what the pair loop reads into cell order (contiguous neighbour ranges).
-
-    out_f: (11, N) rows x, z, v_x, v_z (ghost velocity for boundary particles), sigma/rho^2
-    (xx, zz, xz), volume m/rho, rho, nox, noz; out_k: (3, N) float rows kind, dcl, guard."""
-    for k in prange(cell_index.shape[0]):
-        i = cell_index[k]
-        r = rho[i]
-        inv2 = 1.0 / (r * r)
-        out_f[0, k] = x[i]
-        out_f[1, k] = z[i]
-        if kind[i] == SOIL:
-            out_f[2, k] = vx[i]
-            out_f[3, k] = vz[i]
-        else:
-            out_f[2, k] = gvx[i]
-            out_f[3, k] = gvz[i]
-        out_f[4, k] = sxx[i] * inv2
-        out_f[5, k] = szz[i] * inv2
-        out_f[6, k] = sxz[i] * inv2
-        out_f[7, k] = mass[i] / r
-        out_f[8, k] = r
-        out_f[9, k] = nox[i]
-        out_f[10, k] = noz[i]
-        out_k[0, k] = kind[i]
-        out_k[1, k] = dcl[i]
-        out_k[2, k] = guard[i]
-
-
-@numba.njit(parallel=True, fastmath=True, cache=True)
-def regather(cell_index, vx, vz, gvx, gvz, rho, mass, kind, sxx, szz, sxz, out_f):
-    """Refresh the rows of :func:`gather`'s copy that the stress update and the boundary
-    extrapolation changed (velocities of boundary particles, sigma/rho^2, volume, density);
-    positions, normals and kinds have not moved since."""
-    for k in prange(cell_index.shape[0]):
-        i = cell_index[k]
-        r = rho[i]
-        inv2 = 1.0 / (r * r)
-        if kind[i] != SOIL:
-            out_f[2, k] = gvx[i]
-            out_f[3, k] = gvz[i]
-        out_f[4, k] = sxx[i] * inv2
-        out_f[5, k] = szz[i] * inv2
-        out_f[6, k] = sxz[i] * inv2
-        out_f[7, k] = mass[i] / r
-        out_f[8, k] = r
-
-
-@numba.njit(parallel=True, fastmath=True, cache=True)
-def strain_stress(srt, srtk, cell_index, h, xmin, zmin, inv_cell, ncx, ncz, cell_start,
-                  rho, sxx, szz, sxz, syy, dt, shear_mod, bulk_mod, alpha_phi, k_c, rho_min,
-                  rho_max):
-    """First pass (velocities only): d rho/dt and the velocity gradient L of every granular
-    particle (lxx = dvx/dx, lxz = dvx/dz, ...), then its new density and stress
-    (:func:`dp_update`). Reads only the cell-ordered copies made by :func:`gather`, so it can
-    write the new state by particle id in the same pass."""
-    h2 = h * h
-    sup2 = 4.0 * h2
-    dwc = -5.0 * _W2D / (h2 * h2)
-    inv_h = 1.0 / h
-    X = srt[0]
-    Z = srt[1]
-    VX = srt[2]
-    VZ = srt[3]
-    VOL = srt[7]
-    RHO = srt[8]
-    NOX = srt[9]
-    NOZ = srt[10]
-    KND = srtk[0]
-    DCL = srtk[1]
-    for k in prange(cell_index.shape[0]):
-        if KND[k] != SOIL:
-            continue
-        i = cell_index[k]
-        xi = X[k]
-        zi = Z[k]
-        vxi = VX[k]
-        vzi = VZ[k]
-        cx = min(max(int((xi - xmin) * inv_cell), 0), ncx - 1)
-        cz = min(max(int((zi - zmin) * inv_cell), 0), ncz - 1)
-        dr = 0.0
-        gxx = 0.0
-        gxz = 0.0
-        gzx = 0.0
-        gzz = 0.0
-        for dz in range(-REACH, REACH + 1):
-            iz = cz + dz
-            if iz < 0 or iz >= ncz:
-                continue
-            c0x = max(cx - REACH, 0)
-            c1x = min(cx + REACH, ncx - 1)
-            for j in range(cell_start[iz * ncx + c0x], cell_start[iz * ncx + c1x + 1]):
-                rx = xi - X[j]
-                rz = zi - Z[j]
-                r2 = rx * rx + rz * rz
-                if r2 >= sup2:
-                    continue
-                if KND[j] == LEG and (rx * NOX[j] + rz * NOZ[j] + DCL[j]) <= 0.0:
-                    continue
-                t = 1.0 - 0.5 * math.sqrt(r2) * inv_h
-                fdw = dwc * t * t * t
-                gwx = fdw * rx
-                gwz = fdw * rz
-                vxij = vxi - VX[j]
-                vzij = vzi - VZ[j]
-                volj = VOL[j]
-                dr += volj * RHO[j] * (vxij * gwx + vzij * gwz)
-                gxx -= volj * vxij * gwx
-                gxz -= volj * vxij * gwz
-                gzx -= volj * vzij * gwx
-                gzz -= volj * vzij * gwz
-        rho[i], sxx[i], szz[i], sxz[i], syy[i] = dp_update(
-            rho[i], dr, gxx, gxz, gzx, gzz, sxx[i], szz[i], sxz[i], syy[i], dt, shear_mod,
-            bulk_mod, alpha_phi, k_c, rho_min, rho_max)
-
-
-@numba.njit(parallel=True, fastmath=_FM, cache=True)  # _FM: the NaN checks must stay
-def accelerations_kick(srt, srtk, cell_index, mass, h, c0, av_alpha, av_beta, av_boundary, gx,
-                       gz, hip_x, hip_z, hip_vx, hip_vz, omega, half_t, gap, max_push, xmin, zmin,
-                       inv_cell, ncx, ncz, cell_start, x, z, vx, vz, rho, sxx, szz, dt, damping,
-                       vmax_allowed, fleg, bad):
-    """Second pass (stresses): acceleration of every granular particle, the force it exerts on
-    the leg (fleg[i] = (Fx, Fz, torque about (hip_x, hip_z)), per unit depth), and its kick and
-    drift: v += dt a (optionally damped), x += dt v (symplectic Euler). The pass reads only the
-    cell-ordered copies made by :func:`gather`, so it can move the particles as it goes.
-    Returns the number of particles that went non-finite or faster than ``vmax_allowed``
-    (``bad[i]`` = 1 for those). Artificial
-    viscosity acts between granular particles, and on wall/leg pairs only if ``av_boundary``:
-    its stress ~ alpha rho c v scales with the (numerical) sound speed and would add a drag
-    proportional to the leg speed that the material does not have.
-
-    Penetration guard: a granular particle closer than ``gap`` to the leg's surface (half
-    thickness ``half_t`` from its centre line, seen from a guarded leg particle: not at the
-    tip) is moved back towards that distance after the drift (at most ``max_push`` per step),
-    and loses the part of its velocity that moves it into the leg, relative to the leg's rigid
-    velocity at its position (an inelastic contact, as for a grain meeting a rigid plate; the
-    leg turns clockwise at ``omega`` about the hip, which moves at (hip_vx, hip_vz)). The
-    momentum it loses, m (v.n) n / dt, is added to the force it exerts on the leg, so the guard
-    never takes momentum out of the balance unrecorded (before it did, the C leg's lift came
-    out at a third of RFT's)."""
-    nbad = 0
-    fdamp = 1.0 / (1.0 + damping * dt)
-    h2 = h * h
-    sup2 = 4.0 * h2
-    dwc = -5.0 * _W2D / (h2 * h2)
-    inv_h = 1.0 / h
-    X = srt[0]
-    Z = srt[1]
-    VX = srt[2]
-    VZ = srt[3]
-    PXX = srt[4]
-    PZZ = srt[5]
-    PXZ = srt[6]
-    VOL = srt[7]
-    RHO = srt[8]
-    NOX = srt[9]
-    NOZ = srt[10]
-    KND = srtk[0]
-    DCL = srtk[1]
-    GRD = srtk[2]
-    for k in prange(cell_index.shape[0]):
-        if KND[k] != SOIL:
-            continue
-        i = cell_index[k]
-        xi = X[k]
-        zi = Z[k]
-        vxi = VX[k]
-        vzi = VZ[k]
-        rhoi = RHO[k]
-        dmin = gap
-        pnx = 0.0
-        pnz = 0.0
-        pxx = PXX[k]
-        pzz = PZZ[k]
-        pxz = PXZ[k]
-        cx = min(max(int((xi - xmin) * inv_cell), 0), ncx - 1)
-        cz = min(max(int((zi - zmin) * inv_cell), 0), ncz - 1)
-        a_x = 0.0
-        a_z = 0.0
-        fx = 0.0
-        fz = 0.0
-        tq = 0.0
-        for dz in range(-REACH, REACH + 1):
-            iz = cz + dz
-            if iz < 0 or iz >= ncz:
-                continue
-            c0x = max(cx - REACH, 0)
-            c1x = min(cx + REACH, ncx - 1)
-            # the three cells of a row are contiguous in cell order
-            for j in range(cell_start[iz * ncx + c0x], cell_start[iz * ncx + c1x + 1]):
-                rx = xi - X[j]
-                rz = zi - Z[j]
-                r2 = rx * rx + rz * rz
-                if r2 >= sup2:
-                    continue
-                kj = KND[j]
-                if kj == LEG and (rx * NOX[j] + rz * NOZ[j] + DCL[j]) <= 0.0:
-                    continue  # material on the other side of the thin leg
-                t = 1.0 - 0.5 * math.sqrt(r2) * inv_h
-                fdw = dwc * t * t * t
-                gwx = fdw * rx
-                gwz = fdw * rz
-                vdotr = (vxi - VX[j]) * rx + (vzi - VZ[j]) * rz
-                rhoj = RHO[j]
-                mj = VOL[j] * rhoj
-                pi_ij = 0.0
-                if vdotr < 0.0 and (kj == SOIL or av_boundary):
-                    mu = h * vdotr / (r2 + 0.01 * h2)
-                    pi_ij = (-av_alpha * c0 * mu + av_beta * mu * mu) / (0.5 * (rhoi + rhoj))
-                txx = pxx + PXX[j] - pi_ij
-                tzz = pzz + PZZ[j] - pi_ij
-                txz = pxz + PXZ[j]
-                pax = mj * (txx * gwx + txz * gwz)
-                paz = mj * (txz * gwx + tzz * gwz)
-                a_x += pax
-                a_z += paz
-                if kj == LEG:
-                    if GRD[j] > 0.0:
-                        dn = rx * NOX[j] + rz * NOZ[j] + DCL[j] - half_t
-                        if dn < dmin:
-                            dmin = dn
-                            pnx = NOX[j]
-                            pnz = NOZ[j]
-                    # reaction on the leg, applied at the leg particle
-                    mi = mass[i]
-                    fx -= mi * pax
-                    fz -= mi * paz
-                    tq -= mi * ((X[j] - hip_x) * paz - (Z[j] - hip_z) * pax)
-        # kick, contact, drift
-        nvx = (vxi + dt * (a_x + gx)) * fdamp
-        nvz = (vzi + dt * (a_z + gz)) * fdamp
-        if pnx != 0.0 or pnz != 0.0:
-            rx = xi - hip_x
-            rz = zi - hip_z
-            vn = (nvx - hip_vx - omega * rz) * pnx + (nvz - hip_vz + omega * rx) * pnz
-            if vn < 0.0:
-                nvx -= vn * pnx
-                nvz -= vn * pnz
-                cfx = mass[i] * vn * pnx / dt
-                cfz = mass[i] * vn * pnz / dt
-                fx += cfx
-                fz += cfz
-                tq += rx * cfz - rz * cfx
-        fleg[i, 0] = fx
-        fleg[i, 1] = fz
-        fleg[i, 2] = tq
-        dp = min(gap - dmin, max_push)
-        vx[i] = nvx
-        vz[i] = nvz
-        x[i] = xi + dt * nvx + dp * pnx
-        z[i] = zi + dt * nvz + dp * pnz
-        ok = (nvx * nvx + nvz * nvz < vmax_allowed * vmax_allowed) and math.isfinite(
-            x[i] + z[i] + rho[i] + sxx[i] + szz[i])
-        if ok:
-            bad[i] = 0
-        else:
-            bad[i] = 1
-            nbad += 1
-    return nbad
-
-
-@numba.njit(inline="always", fastmath=True)
+@_source
 def dp_update(rho, drho, lxx, lxz, lzx, lzz, sxx, szz, sxz, syy, dt, shear_mod, bulk_mod,
               alpha_phi, k_c, rho_min, rho_max):
     """One particle's density and Drucker-Prager stress over one step: Jaumann rate + Hooke's
@@ -478,6 +139,462 @@ def dp_update(rho, drho, lxx, lxz, lzx, lzz, sxx, szz, sxz, syy, dt, shear_mod, 
     return rho, dxx + m, dzz + m, s_xz, dyy + m
 
 
+@_source
+def _boundary_one(kk, x, z, vx, vz, rho, kind, nox, noz, dcl, sxx, szz, sxz, syy, gvx, gvz,
+                  bidx, acc_x, acc_z, grav, grid, cell_start, cell_index, noslip):
+    """Boundary particle ``bidx[kk]``: stress and ghost velocity (see :func:`boundary_state`).
+    Reads granular particles only and writes the boundary particle only. grav = (gx, gz);
+    grid = (h, xmin, zmin, inv_cell, ncx, ncz). (Calls with more than 30 arguments become
+    *args calls in CPython's bytecode, which Numba cannot inline: hence the tuples.)"""
+    gx, gz = grav
+    h, xmin, zmin, inv_cell, ncx, ncz = grid
+    w = bidx[kk]
+    xw = x[w]
+    zw = z[w]
+    cx = min(max(int((xw - xmin) * inv_cell), 0), ncx - 1)
+    cz = min(max(int((zw - zmin) * inv_cell), 0), ncz - 1)
+    ssum = 0.0
+    axx = 0.0
+    azz = 0.0
+    axz = 0.0
+    ayy = 0.0
+    avx = 0.0
+    avz = 0.0
+    hyd = 0.0
+    isleg = kind[w] == LEG
+    ex = gx - acc_x[w]
+    ez = gz - acc_z[w]
+    for dz in range(-REACH, REACH + 1):
+        iz = cz + dz
+        if iz < 0 or iz >= ncz:
+            continue
+        for dxc in range(-REACH, REACH + 1):
+            ix = cx + dxc
+            if ix < 0 or ix >= ncx:
+                continue
+            c = iz * ncx + ix
+            for p in range(cell_start[c], cell_start[c + 1]):
+                f = cell_index[p]
+                if kind[f] != SOIL:
+                    continue
+                rx = xw - x[f]
+                rz = zw - z[f]
+                if isleg and (-rx * nox[w] - rz * noz[w] + dcl[w]) <= 0.0:
+                    continue
+                r = math.sqrt(rx * rx + rz * rz)
+                wgt = wendland_w(r, h)
+                if wgt == 0.0:
+                    continue
+                ssum += wgt
+                axx += sxx[f] * wgt
+                azz += szz[f] * wgt
+                axz += sxz[f] * wgt
+                ayy += syy[f] * wgt
+                avx += vx[f] * wgt
+                avz += vz[f] * wgt
+                hyd += rho[f] * (ex * rx + ez * rz) * wgt
+    if ssum > 0.0:
+        inv = 1.0 / ssum
+        # p_w = <p> + rho (g - a_w).(x_w - x_f) (Adami 2012); sigma = -p I, tension
+        # positive: a wall below the material carries more compression.
+        p_add = -hyd * inv
+        sxx[w] = axx * inv + p_add
+        szz[w] = azz * inv + p_add
+        syy[w] = ayy * inv + p_add
+        sxz[w] = axz * inv
+        if noslip:
+            gvx[w] = 2.0 * vx[w] - avx * inv
+            gvz[w] = 2.0 * vz[w] - avz * inv
+        else:
+            gvx[w] = avx * inv
+            gvz[w] = avz * inv
+    else:
+        sxx[w] = 0.0
+        szz[w] = 0.0
+        syy[w] = 0.0
+        sxz[w] = 0.0
+        gvx[w] = vx[w]
+        gvz[w] = vz[w]
+
+
+@_source
+def _gather_one(k, cell_index, x, z, vx, vz, gvx, gvz, rho, mass, kind, nox, noz, dcl, guard,
+                sxx, szz, sxz, out_f, out_k):
+    """Column ``k`` (cell order) of :func:`gather`'s copy."""
+    i = cell_index[k]
+    r = rho[i]
+    inv2 = 1.0 / (r * r)
+    out_f[0, k] = x[i]
+    out_f[1, k] = z[i]
+    if kind[i] == SOIL:
+        out_f[2, k] = vx[i]
+        out_f[3, k] = vz[i]
+    else:
+        out_f[2, k] = gvx[i]
+        out_f[3, k] = gvz[i]
+    out_f[4, k] = sxx[i] * inv2
+    out_f[5, k] = szz[i] * inv2
+    out_f[6, k] = sxz[i] * inv2
+    out_f[7, k] = mass[i] / r
+    out_f[8, k] = r
+    out_f[9, k] = nox[i]
+    out_f[10, k] = noz[i]
+    out_k[0, k] = kind[i]
+    out_k[1, k] = dcl[i]
+    out_k[2, k] = guard[i]
+
+
+@_source
+def _regather_one(k, cell_index, vx, vz, gvx, gvz, rho, mass, kind, sxx, szz, sxz, out_f):
+    """Column ``k`` of :func:`regather`."""
+    i = cell_index[k]
+    r = rho[i]
+    inv2 = 1.0 / (r * r)
+    if kind[i] != SOIL:
+        out_f[2, k] = gvx[i]
+        out_f[3, k] = gvz[i]
+    out_f[4, k] = sxx[i] * inv2
+    out_f[5, k] = szz[i] * inv2
+    out_f[6, k] = sxz[i] * inv2
+    out_f[7, k] = mass[i] / r
+    out_f[8, k] = r
+
+
+@_source
+def _strain_stress_one(k, X, Z, VX, VZ, VOL, RHO, NOX, NOZ, KND, DCL, cell_index, cell_start,
+                       rho, sxx, szz, sxz, syy, par):
+    """Column ``k`` (cell order) of :func:`strain_stress`: the velocity gradient and new
+    density and stress of its particle if granular. X ... DCL: rows of the gathered copy; par
+    = (h, xmin, zmin, inv_cell, ncx, ncz, dt, shear_mod, bulk_mod, alpha_phi, k_c, rho_min,
+    rho_max)."""
+    if KND[k] != SOIL:
+        return
+    (h, xmin, zmin, inv_cell, ncx, ncz, dt, shear_mod, bulk_mod, alpha_phi, k_c, rho_min,
+     rho_max) = par
+    h2 = h * h
+    sup2 = 4.0 * h2
+    dwc = -5.0 * _W2D / (h2 * h2)
+    inv_h = 1.0 / h
+    i = cell_index[k]
+    xi = X[k]
+    zi = Z[k]
+    vxi = VX[k]
+    vzi = VZ[k]
+    cx = min(max(int((xi - xmin) * inv_cell), 0), ncx - 1)
+    cz = min(max(int((zi - zmin) * inv_cell), 0), ncz - 1)
+    dr = 0.0
+    gxx = 0.0
+    gxz = 0.0
+    gzx = 0.0
+    gzz = 0.0
+    for dz in range(-REACH, REACH + 1):
+        iz = cz + dz
+        if iz < 0 or iz >= ncz:
+            continue
+        c0x = max(cx - REACH, 0)
+        c1x = min(cx + REACH, ncx - 1)
+        for j in range(cell_start[iz * ncx + c0x], cell_start[iz * ncx + c1x + 1]):
+            rx = xi - X[j]
+            rz = zi - Z[j]
+            r2 = rx * rx + rz * rz
+            if r2 >= sup2:
+                continue
+            if KND[j] == LEG and (rx * NOX[j] + rz * NOZ[j] + DCL[j]) <= 0.0:
+                continue
+            t = 1.0 - 0.5 * math.sqrt(r2) * inv_h
+            fdw = dwc * t * t * t
+            gwx = fdw * rx
+            gwz = fdw * rz
+            vxij = vxi - VX[j]
+            vzij = vzi - VZ[j]
+            volj = VOL[j]
+            dr += volj * RHO[j] * (vxij * gwx + vzij * gwz)
+            gxx -= volj * vxij * gwx
+            gxz -= volj * vxij * gwz
+            gzx -= volj * vzij * gwx
+            gzz -= volj * vzij * gwz
+    rho[i], sxx[i], szz[i], sxz[i], syy[i] = dp_update(
+        rho[i], dr, gxx, gxz, gzx, gzz, sxx[i], szz[i], sxz[i], syy[i], dt, shear_mod,
+        bulk_mod, alpha_phi, k_c, rho_min, rho_max)
+
+
+@_source
+def _accel_kick_one(k, X, Z, VX, VZ, PXX, PZZ, PXZ, VOL, RHO, NOX, NOZ, KND, DCL, GRD,
+                    cell_index, cell_start, mass, x, z, vx, vz, rho, sxx, szz, fleg, bad, par):
+    """Column ``k`` (cell order) of :func:`accelerations_kick`: acceleration, force on the
+    leg, contact guard, kick and drift of its particle if granular. Returns 1 if the particle
+    went non-finite or too fast, else 0 (also 0 for non-granular columns). X ... GRD: rows of
+    the gathered copy; par: the scalars (see :func:`_accel_par`)."""
+    if KND[k] != SOIL:
+        return 0
+    (h, xmin, zmin, inv_cell, ncx, ncz, c0, av_alpha, av_beta, av_boundary, gx, gz, hip_x,
+     hip_z, hip_vx, hip_vz, omega, half_t, gap, max_push, dt, fdamp, vmax_allowed) = par
+    h2 = h * h
+    sup2 = 4.0 * h2
+    dwc = -5.0 * _W2D / (h2 * h2)
+    inv_h = 1.0 / h
+    i = cell_index[k]
+    xi = X[k]
+    zi = Z[k]
+    vxi = VX[k]
+    vzi = VZ[k]
+    rhoi = RHO[k]
+    dmin = gap
+    pnx = 0.0
+    pnz = 0.0
+    pxx = PXX[k]
+    pzz = PZZ[k]
+    pxz = PXZ[k]
+    cx = min(max(int((xi - xmin) * inv_cell), 0), ncx - 1)
+    cz = min(max(int((zi - zmin) * inv_cell), 0), ncz - 1)
+    a_x = 0.0
+    a_z = 0.0
+    fx = 0.0
+    fz = 0.0
+    tq = 0.0
+    for dz in range(-REACH, REACH + 1):
+        iz = cz + dz
+        if iz < 0 or iz >= ncz:
+            continue
+        c0x = max(cx - REACH, 0)
+        c1x = min(cx + REACH, ncx - 1)
+        # the cells of a row are contiguous in cell order
+        for j in range(cell_start[iz * ncx + c0x], cell_start[iz * ncx + c1x + 1]):
+            rx = xi - X[j]
+            rz = zi - Z[j]
+            r2 = rx * rx + rz * rz
+            if r2 >= sup2:
+                continue
+            kj = KND[j]
+            if kj == LEG and (rx * NOX[j] + rz * NOZ[j] + DCL[j]) <= 0.0:
+                continue  # material on the other side of the thin leg
+            t = 1.0 - 0.5 * math.sqrt(r2) * inv_h
+            fdw = dwc * t * t * t
+            gwx = fdw * rx
+            gwz = fdw * rz
+            vdotr = (vxi - VX[j]) * rx + (vzi - VZ[j]) * rz
+            rhoj = RHO[j]
+            mj = VOL[j] * rhoj
+            pi_ij = 0.0
+            if vdotr < 0.0 and (kj == SOIL or av_boundary):
+                mu = h * vdotr / (r2 + 0.01 * h2)
+                pi_ij = (-av_alpha * c0 * mu + av_beta * mu * mu) / (0.5 * (rhoi + rhoj))
+            txx = pxx + PXX[j] - pi_ij
+            tzz = pzz + PZZ[j] - pi_ij
+            txz = pxz + PXZ[j]
+            pax = mj * (txx * gwx + txz * gwz)
+            paz = mj * (txz * gwx + tzz * gwz)
+            a_x += pax
+            a_z += paz
+            if kj == LEG:
+                if GRD[j] > 0.0:
+                    dn = rx * NOX[j] + rz * NOZ[j] + DCL[j] - half_t
+                    if dn < dmin:
+                        dmin = dn
+                        pnx = NOX[j]
+                        pnz = NOZ[j]
+                # reaction on the leg, applied at the leg particle
+                mi = mass[i]
+                fx -= mi * pax
+                fz -= mi * paz
+                tq -= mi * ((X[j] - hip_x) * paz - (Z[j] - hip_z) * pax)
+    # kick, contact, drift
+    nvx = (vxi + dt * (a_x + gx)) * fdamp
+    nvz = (vzi + dt * (a_z + gz)) * fdamp
+    if pnx != 0.0 or pnz != 0.0:
+        rx = xi - hip_x
+        rz = zi - hip_z
+        vn = (nvx - hip_vx - omega * rz) * pnx + (nvz - hip_vz + omega * rx) * pnz
+        if vn < 0.0:
+            nvx -= vn * pnx
+            nvz -= vn * pnz
+            cfx = mass[i] * vn * pnx / dt
+            cfz = mass[i] * vn * pnz / dt
+            fx += cfx
+            fz += cfz
+            tq += rx * cfz - rz * cfx
+    fleg[i, 0] = fx
+    fleg[i, 1] = fz
+    fleg[i, 2] = tq
+    dp = min(gap - dmin, max_push)
+    vx[i] = nvx
+    vz[i] = nvz
+    x[i] = xi + dt * nvx + dp * pnx
+    z[i] = zi + dt * nvz + dp * pnz
+    ok = (nvx * nvx + nvz * nvz < vmax_allowed * vmax_allowed) and math.isfinite(
+        x[i] + z[i] + rho[i] + sxx[i] + szz[i])
+    if ok:
+        bad[i] = 0
+        return 0
+    bad[i] = 1
+    return 1
+
+
+@_source
+def _accel_par(h, c0, av_alpha, av_beta, av_boundary, gx, gz, hip_x, hip_z, hip_vx, hip_vz,
+               omega, half_t, gap, max_push, xmin, zmin, inv_cell, ncx, ncz, dt, damping,
+               vmax_allowed):
+    """The scalars of :func:`_accel_kick_one` as one tuple (CPython turns calls with more
+    than 30 arguments into *args calls, which Numba cannot inline)."""
+    fdamp = 1.0 / (1.0 + damping * dt)
+    return (h, xmin, zmin, inv_cell, ncx, ncz, c0, av_alpha, av_beta, av_boundary, gx, gz,
+            hip_x, hip_z, hip_vx, hip_vz, omega, half_t, gap, max_push, dt, fdamp, vmax_allowed)
+
+
+@_source
+def _place_one(kk, c, s, x, z, vx, vz, acc_x, acc_z, nox, noz, lidx, bx, bz, bnx, bnz, hip_x,
+               hip_z, hip_vx, hip_vz, hip_ax, hip_az, omega, alpha):
+    """Leg particle ``lidx[kk]`` at its rigid pose (see :func:`place_rigid`; c, s: cosine and
+    sine of the angle)."""
+    w = lidx[kk]
+    rx = c * bx[kk] + s * bz[kk]
+    rz = -s * bx[kk] + c * bz[kk]
+    x[w] = hip_x + rx
+    z[w] = hip_z + rz
+    # clockwise rotation: v = v_hip + omega * (rz, -rx)
+    vx[w] = hip_vx + omega * rz
+    vz[w] = hip_vz - omega * rx
+    acc_x[w] = hip_ax + alpha * rz - omega * omega * rx
+    acc_z[w] = hip_az - alpha * rx - omega * omega * rz
+    nox[w] = c * bnx[kk] + s * bnz[kk]
+    noz[w] = -s * bnx[kk] + c * bnz[kk]
+
+
+# ------------------------------------------------------------------ CPU kernels (prange)
+@numba.njit(cache=True)
+def bin_particles(x, z, xmin, zmin, inv_cell, ncx, ncz, cell_start, cell_index):
+    """Counting sort of particles into square cells (side = kernel support).
+
+    cell_start: (ncx*ncz + 1,) int64 offsets; cell_index: (N,) particle ids sorted by cell
+    (ascending ids within a cell). Particles outside the grid are clamped into the edge cells
+    (still correct: every pair is tested by distance)."""
+    n = x.shape[0]
+    nc = ncx * ncz
+    cell_of = np.empty(n, np.int64)
+    for k in range(nc + 1):
+        cell_start[k] = 0
+    for i in range(n):
+        c = _cell_of(x[i], z[i], xmin, zmin, inv_cell, ncx, ncz)
+        cell_of[i] = c
+        cell_start[c + 1] += 1
+    for k in range(nc):
+        cell_start[k + 1] += cell_start[k]
+    fill = cell_start[:-1].copy()
+    for i in range(n):
+        c = cell_of[i]
+        cell_index[fill[c]] = i
+        fill[c] += 1
+
+
+@numba.njit(parallel=True, fastmath=True, cache=True)
+def boundary_state(x, z, vx, vz, rho, mass, kind, nox, noz, dcl, sxx, szz, sxz, syy,
+                   gvx, gvz, bidx, acc_x, acc_z, gx, gz, h,
+                   xmin, zmin, inv_cell, ncx, ncz, cell_start, cell_index, noslip):
+    """Stress and ghost velocity of every boundary particle (ids ``bidx``) from the granular
+    particles around it (Shepard average + hydrostatic term). acc_x/acc_z: (N,) wall
+    accelerations. ``noslip``: ghost velocity 2 v_w - <v>; else <v> (free slip)."""
+    grav = (gx, gz)
+    grid = (h, xmin, zmin, inv_cell, ncx, ncz)
+    for kk in prange(bidx.shape[0]):
+        _boundary_one(kk, x, z, vx, vz, rho, kind, nox, noz, dcl, sxx, szz, sxz, syy, gvx, gvz,
+                      bidx, acc_x, acc_z, grav, grid, cell_start, cell_index, noslip)
+
+
+@numba.njit(parallel=True, fastmath=True, cache=True)
+def gather(cell_index, x, z, vx, vz, gvx, gvz, rho, mass, kind, nox, noz, dcl, guard, sxx, szz,
+           sxz, out_f, out_k):
+    """Copy what the pair loop reads into cell order (contiguous neighbour ranges).
+
+    out_f: (11, N) rows x, z, v_x, v_z (ghost velocity for boundary particles), sigma/rho^2
+    (xx, zz, xz), volume m/rho, rho, nox, noz; out_k: (3, N) float rows kind, dcl, guard."""
+    for k in prange(cell_index.shape[0]):
+        _gather_one(k, cell_index, x, z, vx, vz, gvx, gvz, rho, mass, kind, nox, noz, dcl,
+                    guard, sxx, szz, sxz, out_f, out_k)
+
+
+@numba.njit(parallel=True, fastmath=True, cache=True)
+def regather(cell_index, vx, vz, gvx, gvz, rho, mass, kind, sxx, szz, sxz, out_f):
+    """Refresh the rows of :func:`gather`'s copy that the stress update and the boundary
+    extrapolation changed (velocities of boundary particles, sigma/rho^2, volume, density);
+    positions, normals and kinds have not moved since."""
+    for k in prange(cell_index.shape[0]):
+        _regather_one(k, cell_index, vx, vz, gvx, gvz, rho, mass, kind, sxx, szz, sxz, out_f)
+
+
+@numba.njit(parallel=True, fastmath=True, cache=True)
+def strain_stress(srt, srtk, cell_index, h, xmin, zmin, inv_cell, ncx, ncz, cell_start,
+                  rho, sxx, szz, sxz, syy, dt, shear_mod, bulk_mod, alpha_phi, k_c, rho_min,
+                  rho_max):
+    """First pass (velocities only): d rho/dt and the velocity gradient L of every granular
+    particle (lxx = dvx/dx, lxz = dvx/dz, ...), then its new density and stress
+    (:func:`dp_update`). Reads only the cell-ordered copies made by :func:`gather`, so it can
+    write the new state by particle id in the same pass."""
+    X = srt[0]
+    Z = srt[1]
+    VX = srt[2]
+    VZ = srt[3]
+    VOL = srt[7]
+    RHO = srt[8]
+    NOX = srt[9]
+    NOZ = srt[10]
+    KND = srtk[0]
+    DCL = srtk[1]
+    par = (h, xmin, zmin, inv_cell, ncx, ncz, dt, shear_mod, bulk_mod, alpha_phi, k_c, rho_min,
+           rho_max)
+    for k in prange(cell_index.shape[0]):
+        _strain_stress_one(k, X, Z, VX, VZ, VOL, RHO, NOX, NOZ, KND, DCL, cell_index, cell_start,
+                           rho, sxx, szz, sxz, syy, par)
+
+
+@numba.njit(parallel=True, fastmath=_FM, cache=True)  # _FM: the NaN checks must stay
+def accelerations_kick(srt, srtk, cell_index, mass, h, c0, av_alpha, av_beta, av_boundary, gx,
+                       gz, hip_x, hip_z, hip_vx, hip_vz, omega, half_t, gap, max_push, xmin, zmin,
+                       inv_cell, ncx, ncz, cell_start, x, z, vx, vz, rho, sxx, szz, dt, damping,
+                       vmax_allowed, fleg, bad):
+    """Second pass (stresses): acceleration of every granular particle, the force it exerts on
+    the leg (fleg[i] = (Fx, Fz, torque about (hip_x, hip_z)), per unit depth), and its kick and
+    drift: v += dt a (optionally damped), x += dt v (symplectic Euler). The pass reads only the
+    cell-ordered copies made by :func:`gather`, so it can move the particles as it goes.
+    Returns the number of particles that went non-finite or faster than ``vmax_allowed``
+    (``bad[i]`` = 1 for those). Artificial
+    viscosity acts between granular particles, and on wall/leg pairs only if ``av_boundary``:
+    its stress ~ alpha rho c v scales with the (numerical) sound speed and would add a drag
+    proportional to the leg speed that the material does not have.
+
+    Penetration guard: a granular particle closer than ``gap`` to the leg's surface (half
+    thickness ``half_t`` from its centre line, seen from a guarded leg particle: not at the
+    tip) is moved back towards that distance after the drift (at most ``max_push`` per step),
+    and loses the part of its velocity that moves it into the leg, relative to the leg's rigid
+    velocity at its position (an inelastic contact, as for a grain meeting a rigid plate; the
+    leg turns clockwise at ``omega`` about the hip, which moves at (hip_vx, hip_vz)). The
+    momentum it loses, m (v.n) n / dt, is added to the force it exerts on the leg, so the guard
+    never takes momentum out of the balance unrecorded (before it did, the C leg's lift came
+    out at a third of RFT's)."""
+    nbad = 0
+    X = srt[0]
+    Z = srt[1]
+    VX = srt[2]
+    VZ = srt[3]
+    PXX = srt[4]
+    PZZ = srt[5]
+    PXZ = srt[6]
+    VOL = srt[7]
+    RHO = srt[8]
+    NOX = srt[9]
+    NOZ = srt[10]
+    KND = srtk[0]
+    DCL = srtk[1]
+    GRD = srtk[2]
+    par = _accel_par(h, c0, av_alpha, av_beta, av_boundary, gx, gz, hip_x, hip_z, hip_vx, hip_vz,
+                     omega, half_t, gap, max_push, xmin, zmin, inv_cell, ncx, ncz, dt, damping,
+                     vmax_allowed)
+    for k in prange(cell_index.shape[0]):
+        nbad += _accel_kick_one(k, X, Z, VX, VZ, PXX, PZZ, PXZ, VOL, RHO, NOX, NOZ, KND, DCL, GRD,
+                                cell_index, cell_start, mass, x, z, vx, vz, rho, sxx, szz, fleg,
+                                bad, par)
+    return nbad
+
+
 @numba.njit(parallel=True, fastmath=True, cache=True)
 def update_stress(rho, sxx, szz, sxz, syy, sidx, drho, lxx, lxz, lzx, lzz, dt, shear_mod,
                   bulk_mod, alpha_phi, k_c, rho_min, rho_max):
@@ -499,18 +616,8 @@ def place_rigid(x, z, vx, vz, acc_x, acc_z, nox, noz, lidx, bx, bz, bnx, bnz,
     c = math.cos(ang)
     s = math.sin(ang)
     for kk in prange(lidx.shape[0]):
-        w = lidx[kk]
-        rx = c * bx[kk] + s * bz[kk]
-        rz = -s * bx[kk] + c * bz[kk]
-        x[w] = hip_x + rx
-        z[w] = hip_z + rz
-        # clockwise rotation: v = v_hip + omega * (rz, -rx)
-        vx[w] = hip_vx + omega * rz
-        vz[w] = hip_vz - omega * rx
-        acc_x[w] = hip_ax + alpha * rz - omega * omega * rx
-        acc_z[w] = hip_az - alpha * rx - omega * omega * rz
-        nox[w] = c * bnx[kk] + s * bnz[kk]
-        noz[w] = -s * bnx[kk] + c * bnz[kk]
+        _place_one(kk, c, s, x, z, vx, vz, acc_x, acc_z, nox, noz, lidx, bx, bz, bnx, bnz,
+                   hip_x, hip_z, hip_vx, hip_vz, hip_ax, hip_az, omega, alpha)
 
 
 def warmup():
