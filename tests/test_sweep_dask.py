@@ -17,13 +17,16 @@ import pytest
 
 import terradyn.sweep as sw
 from terradyn.errors import InputError
+from terradyn.sweep.execute import task_key
 
 from test_sweep import SMALL, direct, heavy_spec
 
 distributed = pytest.importorskip("distributed")
 
 ENV = {**os.environ, "NUMBA_NUM_THREADS": "1", "OMP_NUM_THREADS": "1", "OPENBLAS_NUM_THREADS": "1",
-       "DASK_DISTRIBUTED__WORKER__DAEMON": "False"}
+       "DASK_DISTRIBUTED__WORKER__DAEMON": "False",
+       # the workers' logs of executed tasks are the test's record of what was computed
+       "DASK_DISTRIBUTED__ADMIN__LOW_LEVEL_LOG_LENGTH": "100000"}
 
 
 class Cluster:
@@ -71,12 +74,17 @@ class Cluster:
         for p in self.procs:
             if p.poll() is None:
                 os.killpg(p.pid, signal.SIGTERM)
+        deadline = time.monotonic() + 3
         for p in self.procs:
             try:
-                p.wait(3)
+                p.wait(max(0.1, deadline - time.monotonic()))
             except subprocess.TimeoutExpired:
                 os.killpg(p.pid, signal.SIGKILL)
-                p.wait(5)
+        for p in self.procs:  # a loaded machine may take a while even after SIGKILL
+            try:
+                p.wait(60)
+            except subprocess.TimeoutExpired:
+                pass
 
 
 @pytest.fixture(scope="module")
@@ -190,3 +198,135 @@ def test_an_existing_client_in_the_process_is_reused(cluster, tmp_path):
         s = sw.run(sw.parse(SMALL.replace("[6.0, 7.62]", "[5.5]")), tmp_path / "r.sweep", scheduler=cluster.address)
         assert (s.executor, s.done) == ("dask", 3) and len(seen) == 3
         assert c.status == "running"  # not closed by the sweep
+
+
+
+def slow_spec(n_lengths: int) -> str:
+    """2 x ``n_lengths`` cases, ids unlike :func:`heavy_spec`'s: for each leg length a short
+    case (8000 elements x 8000 angles, ~0.2 s) and a long one (x 64000 angles, ~1.6 s of CPU),
+    so that the driver can be killed while a long case has surely not finished on its worker:
+    one that started less than 0.8 s ago (wall time) has at least 0.8 s of CPU to go, however
+    loaded the machine is."""
+    return (heavy_spec(n_lengths).replace('name = "heavy"', 'name = "slow"')
+            .replace("elements = 2000", "elements = 8000").replace("n_theta = 2000\n", "")
+            + "motion.n_theta = [8000, 64000]\n")
+
+
+def _worker_probes():
+    """Functions for ``Client.run`` (defined here so cloudpickle ships them by value: the
+    workers cannot import this module). ``executing``: key -> seconds since it started, for
+    the tasks a worker is running now (including cancelled ones still running); ``executed``:
+    keys of every execution the worker finished (its stimulus log, one entry per execution);
+    ``cancelled_running``: keys the scheduler released while they were executing there (its
+    transition log: executing -> cancelled), i.e. orphans that ran on without a client."""
+    def executing(dask_worker):
+        now = time.time()
+        return {str(ts.key): now - ts.start_time for ts in list(dask_worker.state.executing)
+                if ts.start_time is not None}
+
+    def executed(dask_worker):
+        return [str(ev.key) for ev in list(dask_worker.state.stimulus_log)
+                if type(ev).__name__ in ("ExecuteSuccessEvent", "ExecuteFailureEvent")]
+
+    def cancelled_running(dask_worker):
+        return [str(e[0]) for e in list(dask_worker.state.log)
+                if len(e) == 7 and e[1] == "executing" and e[3] == "cancelled"]
+
+    return executing, executed, cancelled_running
+
+
+def test_driver_killed_mid_sweep_on_dask_then_rerun_loses_nothing_and_repeats_nothing(cluster, tmp_path):
+    """The driver (``terradyn sweep run --scheduler``, a subprocess) is SIGKILLed while cases
+    run on the Dask workers, just after one of them started a long case; the sweep is rerun.
+
+    Lost: a case of the plan missing from the store afterwards, or not the plain simulation's
+    numbers. Run twice: a case whose result was stored before the kill (its file present
+    after it) computed again, or any case stored twice. Computations are counted from the
+    workers' own logs (every execution of every task, its key naming the case and the driver
+    run that submitted it), not from the store, which never hears of a computation whose
+    result did not reach it. A case in flight when the driver died had no stored result:
+    the rerun computes it once more, which is allowed, and its orphaned task, which Dask
+    cannot stop, runs on to its end on the worker after the scheduler has dropped it. The
+    test checks that such an orphan existed and finished, and left nothing in the store
+    (only the driver writes it: the orphan's result goes nowhere)."""
+    executing, executed, cancelled_running = _worker_probes()
+    spec_path = tmp_path / "slow.toml"
+    spec_path.write_text(slow_spec(3))
+    spec = sw.load(spec_path)
+    n, ids = len(spec.cases), {c.id for c in spec.cases}
+    long_ids = {c.id for c in spec.cases if c.params["motion"]["n_theta"] == 64000}
+    store = tmp_path / "d.sweep"
+    ours = lambda key: key.startswith("terradyn-case-") and key.split("-")[2] in ids  # noqa: E731
+    case_of, run_of = (lambda key: key.split("-")[2]), (lambda key: key.split("-")[3])  # noqa: E731
+    cmd = [sys.executable, "-m", "terradyn", "sweep", "run", str(spec_path), "--store", str(store),
+           "--scheduler", cluster.address, "-q"]
+    with distributed.Client(cluster.address, timeout="30s", set_as_default=False) as c:
+        proc = subprocess.Popen(cmd, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, env=ENV,
+                                start_new_session=True)
+        fresh = set()
+        try:
+            deadline = time.monotonic() + 300
+            while time.monotonic() < deadline and proc.poll() is None:
+                if len(sw.Store(store).done_ids()) >= 2:
+                    running = {k: age for w in c.run(executing).values() for k, age in w.items() if ours(k)}
+                    fresh = {k for k, age in running.items() if age < 0.8 and case_of(k) in long_ids}
+                    if fresh:  # a long case started < 0.8 s ago: it has 0.8 s of CPU or more to go
+                        break
+                time.sleep(0.01)
+            os.kill(proc.pid, signal.SIGKILL)
+            proc.wait(10)
+        finally:
+            if proc.poll() is None:
+                os.killpg(proc.pid, signal.SIGKILL)
+                proc.wait(10)
+        assert proc.returncode == -signal.SIGKILL, proc.stderr.read().decode()[-2000:]
+        assert fresh, "no long case had just started when the driver was killed"
+        st = sw.Store(store)
+        done_before = st.done_ids()
+        assert 2 <= len(done_before) < n, "the kill must land mid-sweep"
+        (killed,) = [e["run"] for e in st.events() if e["event"] == "run-start"]
+        assert fresh == {task_key(case_of(k), killed) for k in fresh}
+
+        s = sw.run(spec, store, scheduler=cluster.address)  # the rerun, while the orphan may still run
+        after_rerun = {p.name: (p.stat().st_ino, p.stat().st_mtime_ns, p.stat().st_size)
+                       for p in [*store.joinpath("cases").iterdir(), store / "events.jsonl"]}
+        assert (s.executor, s.skipped, s.done, s.failed) == ("dask", len(done_before), n - len(done_before), {})
+
+        deadline = time.monotonic() + 60  # let every orphan finish before counting
+        while any(ours(k) for w in c.run(executing).values() for k in w) and time.monotonic() < deadline:
+            time.sleep(0.05)
+        execs = [k for w in c.run(executed).values() for k in w if ours(k)]
+        orphaned = {k for w in c.run(cancelled_running).values() for k in w if ours(k)}
+
+    ev = st.events()
+    runs = [e["run"] for e in ev if e["event"] == "run-start"]
+    assert len(runs) == 2 and runs[0] == killed
+    rerun = runs[1]
+    computed = collections.Counter((case_of(k), run_of(k)) for k in execs)
+    assert {r for _, r in computed} == {killed, rerun}
+    for cid in done_before:  # finished before the kill: computed once, by the killed run
+        assert (computed[cid, killed], computed[cid, rerun]) == (1, 0), cid
+    for cid in ids - done_before:  # not stored before the kill: computed once by the rerun
+        assert computed[cid, rerun] == 1 and computed[cid, killed] <= 1, cid
+    # orphans: dropped by the scheduler while running (the driver was gone), then ran to the end
+    assert fresh <= orphaned and {run_of(k) for k in orphaned} == {killed}
+    assert all(computed[case_of(k), killed] == 1 for k in orphaned)
+    assert not {case_of(k) for k in orphaned} & done_before  # their results were never stored
+
+    # stored exactly once: by the killed run (before the kill) or by the rerun (the rest)
+    stored = collections.Counter((e["case"], e["run"]) for e in ev if e["event"] == "case-done")
+    assert {cid for cid, r in stored if r == rerun} == ids - done_before
+    assert {cid for cid, r in stored if r == killed} <= done_before
+    assert set(stored.values()) == {1}
+    for cid in ids:
+        assert st.read_case(cid).attrs["sweep_run"] == (killed if cid in done_before else rerun), cid
+    # the orphans, finished now, changed nothing: no late, half-written or duplicate case
+    now = {p.name: (p.stat().st_ino, p.stat().st_mtime_ns, p.stat().st_size)
+           for p in [*store.joinpath("cases").iterdir(), store / "events.jsonl"]}
+    assert now == after_rerun and sorted(now) == sorted([f"{cid}.nc" for cid in ids] + ["events.jsonl"])
+    assert sw.status(store)["done"] == n
+    by_id = {c.id: c for c in spec.cases}
+    for cid in [case_of(k) for k in fresh][:1] + [spec.cases[0].id]:  # an orphaned case and another
+        got, ref = st.read_case(cid), direct(by_id[cid].params)
+        np.testing.assert_array_equal(got.Fz.values, ref.Fz.values)
+        np.testing.assert_array_equal(got.torque.values, ref.torque.values)

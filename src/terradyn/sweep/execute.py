@@ -145,8 +145,44 @@ def _serial(todo, ck):
             yield c.id, None, e
 
 
-def _pool_init():
+def _pool_init(driver_pid: int | None = None):
     _single_thread()
+    if driver_pid is not None:
+        _die_with(driver_pid)
+
+
+def _die_with(driver_pid: int) -> None:
+    """End this pool worker when the driver process dies.
+
+    A SIGKILLed driver cannot shut its pool down, and its workers do not notice: each
+    finishes its case (hours, for SPH) and then hangs for ever on the pool's pipes (seen:
+    blocked writing its result, which nobody reads), while the rerun's own workers compete
+    with them for the cores and, for an SPH case, for the same checkpoint file. On Linux the
+    kernel kills the worker when the driver thread that started it (the one running the
+    sweep) ends; elsewhere a thread polls the parent pid (it may wait for the GIL while a
+    case runs)."""
+    import signal
+    import sys
+
+    if sys.platform.startswith("linux"):
+        try:
+            import ctypes
+
+            libc = ctypes.CDLL(None, use_errno=True)
+            if libc.prctl(1, int(signal.SIGKILL), 0, 0, 0) == 0:  # 1 = PR_SET_PDEATHSIG
+                if os.getppid() != driver_pid:  # died before prctl took effect
+                    os._exit(1)
+                return
+        except (OSError, AttributeError):
+            pass
+    import threading
+
+    def watch():
+        while os.getppid() == driver_pid:
+            time.sleep(1.0)
+        os._exit(1)
+
+    threading.Thread(target=watch, name="terradyn-driver-watch", daemon=True).start()
 
 
 def _local(todo, workers: int, ck):
@@ -155,7 +191,8 @@ def _local(todo, workers: int, ck):
     # spawn: workers start clean, read the thread variables before numba loads, and do not
     # inherit the driver's threads (fork after numba/BLAS threads start is unsafe).
     ctx = mp.get_context("spawn")
-    ex = ProcessPoolExecutor(max_workers=workers, mp_context=ctx, initializer=_pool_init)
+    ex = ProcessPoolExecutor(max_workers=workers, mp_context=ctx, initializer=_pool_init,
+                             initargs=(os.getpid(),))
     finished = False
     try:
         futs = {ex.submit(run_case, c.id, c.params, True, ck): c.id for c in todo}
@@ -170,7 +207,7 @@ def _local(todo, workers: int, ck):
         ex.shutdown(wait=finished, cancel_futures=True)
 
 
-def _dask(todo, address: str, retries: int, ck):
+def _dask(todo, address: str, retries: int, ck, run_id: str):
     try:
         from distributed import Client, as_completed as d_completed
     except ImportError:  # pragma: no cover - a dependency
@@ -186,7 +223,10 @@ def _dask(todo, address: str, retries: int, ck):
     try:
         futs = {}
         for c in todo:
-            f = client.submit(run_case, c.id, c.params, True, ck, key=f"terradyn-case-{c.id}-{os.urandom(4).hex()}",
+            # The key names the case and this driver run (unique per run): the cluster's own
+            # records (dashboard, worker logs) tell which run computed what, e.g. that a rerun
+            # after a killed driver recomputed only the cases that run had not stored.
+            f = client.submit(run_case, c.id, c.params, True, ck, key=task_key(c.id, run_id),
                               pure=False, retries=retries)
             futs[f.key] = (c.id, f)
         # with_results: the client fetches results concurrently as tasks finish, rather than
@@ -201,6 +241,12 @@ def _dask(todo, address: str, retries: int, ck):
     finally:
         if own:
             client.close()
+
+
+def task_key(cid: str, run_id: str) -> str:
+    """The Dask key of case ``cid`` submitted by the driver run ``run_id`` (the ``run`` of the
+    store's events and the case file's ``sweep_run``)."""
+    return f"terradyn-case-{cid}-{run_id}"
 
 
 def _existing_client(address: str):
@@ -259,9 +305,10 @@ def run(spec: SweepSpec | str | Path, store: str | Path | None = None, *, worker
         todo = [c for c in spec.cases if c.id not in done]
         total = len(spec.cases)
         ck = str(checkpoint_dir or st.path / "checkpoints")
+        run_id = os.urandom(6).hex()
         if scheduler:
             executor, nw = "dask", 0
-            stream = _dask(todo, scheduler, retries, str(checkpoint_dir) if checkpoint_dir else None)
+            stream = _dask(todo, scheduler, retries, str(checkpoint_dir) if checkpoint_dir else None, run_id)
         elif workers == 0 or len(todo) <= 1:
             executor, nw = "serial", 1
             stream = _serial(todo, ck)
@@ -271,7 +318,6 @@ def run(spec: SweepSpec | str | Path, store: str | Path | None = None, *, worker
             stream = _local(todo, nw, ck)
         summary = Summary(store=str(st.path), total=total, skipped=total - len(todo), executor=executor,
                           workers=nw)
-        run_id = os.urandom(6).hex()
         st.log("run-start", run=run_id, executor=executor, scheduler=scheduler, workers=nw,
                todo=len(todo), total=total, host=socket.gethostname(), pid=os.getpid())
         t0 = time.perf_counter()
