@@ -7,7 +7,7 @@ import xarray as xr
 
 import terradyn as td
 from terradyn.dddas import GaussianPosterior, ParticleFilter, Surrogate, cross_validate, hosvd
-from terradyn.dddas.filter import _nb_update
+from terradyn.dddas.filter import _nb_resample, _nb_update
 from terradyn.dddas.online import Assimilation, assimilate
 from terradyn.errors import InputError
 
@@ -201,6 +201,93 @@ def test_resampling_offspring_counts_follow_the_weights(resample):
         fracs.append(float(pf.Ct[0].mean()))
     f = np.array(fracs)
     assert np.all(np.abs(f - 0.8) < (0.02 if resample == "multinomial" else 0.001)), f
+
+
+def _u01_reference(i, seed):
+    """The kernels' uniforms: lowbias32 hash of i + seed, top 24 bits (NumPy)."""
+    x = (np.asarray(i, np.uint64) + np.uint64(seed)) & np.uint64(0xFFFFFFFF)
+    x ^= x >> np.uint64(16)
+    x = (x * np.uint64(0x7FEB352D)) & np.uint64(0xFFFFFFFF)
+    x ^= x >> np.uint64(15)
+    x = (x * np.uint64(0x846CA68B)) & np.uint64(0xFFFFFFFF)
+    x ^= x >> np.uint64(16)
+    return (x >> np.uint64(8)).astype(float) * 2.0 ** -24
+
+
+@pytest.mark.parametrize("resample", ["multinomial", "systematic"])
+def test_numba_resampling_picks_the_ancestors_of_a_search(resample):
+    # The kernel finds ancestors without searching (systematic: scatter + running max;
+    # multinomial: a merge in four chains split along the merge path). New particle i must
+    # descend from the first particle whose cumulative weight reaches its point t_i, as
+    # np.searchsorted finds it: any N (small, odd), flat, skewed and mostly-zero weights.
+    rng = np.random.default_rng(7)
+    for n in (2, 3, 5, 8, 9, 101, 4001):
+        for kind in range(4):
+            w = (rng.exponential(size=n) ** (1 + 3 * kind)).astype(np.float32)
+            if kind == 3:
+                w[rng.random(n) < 0.7] = np.float32(1e-30)
+            pf = ParticleFilter(np.zeros(2), prior_std=np.ones(2), n_particles=n, resample=resample,
+                                jitter=0.0)
+            pf.Ct[0] = np.arange(n, dtype=np.float32)
+            pf.Ct[1] = -pf.Ct[0]
+            pf._ws[1] = w
+            seed = int(rng.integers(0, 2 ** 32))
+            _nb_resample(pf.Ct, pf._out, pf._ws, pf._w64, pf._wi, resample == "systematic",
+                         np.uint32(seed), 0.0, np.zeros(2))
+            anc = pf.Ct[0].astype(np.int64)
+            np.testing.assert_array_equal(pf.Ct[1], -pf.Ct[0])  # whole columns move together
+            cw = np.cumsum(w.astype(float))
+            if resample == "systematic":
+                t = (np.arange(n) + _u01_reference(0, seed)) * cw[-1] / n
+            else:  # sorted uniforms from N + 1 exponentials (the kernel's log: ~1e-7 error)
+                e = -np.log1p(-_u01_reference(np.arange(n + 1), seed))
+                t = np.cumsum(e)[:n] * cw[-1] / e.sum()
+            ref = np.minimum(np.searchsorted(cw, t), n - 1)
+            bad = np.flatnonzero(anc != ref)
+            # disagreements only where a point is within rounding of a cumulative weight
+            assert all(np.min(np.abs(cw - t[i])) < 1e-5 * cw[-1] for i in bad), (n, kind, bad)
+            assert len(bad) <= max(1, n // 1000)
+    if resample == "multinomial":  # offspring counts over many draws: mean n w / sum(w)
+        n, reps = 50, 4000
+        w = np.linspace(0.1, 2.0, n)
+        pf = ParticleFilter(np.zeros(1), prior_std=np.ones(1), n_particles=n, resample=resample, jitter=0.0)
+        tot = np.zeros(n)
+        for r in range(reps):
+            pf.Ct[0] = np.arange(n, dtype=np.float32)
+            pf._ws[1] = w.astype(np.float32)
+            _nb_resample(pf.Ct, pf._out, pf._ws, pf._w64, pf._wi, False, np.uint32(r * 7919 + 1), 0.0,
+                         np.zeros(1))
+            tot += np.bincount(pf.Ct[0].astype(np.int64), minlength=n)
+        expect = reps * n * w / w.sum()
+        z = (tot - expect) / np.sqrt(expect)  # binomial: std <= sqrt(mean)
+        assert np.abs(z).max() < 4.5 and abs(z.mean()) < 0.5, z
+
+
+@pytest.mark.parametrize("resample", ["multinomial", "systematic"])
+def test_numba_resampling_is_reproducible_and_the_jitter_keeps_mean_and_variance(resample):
+    m0, P0, H, off, y, sigma = linear_problem(D=5, n_obs=30, sigma=0.3)
+    runs = []
+    for _ in range(2):
+        pf = ParticleFilter(m0, P0, n_particles=3001, resample=resample, rng=11)
+        for k in range(len(y)):
+            pf.update(H[k], off[k], y[k], sigma)
+        assert pf.n_resamples > 3
+        runs.append(pf.particles)
+    np.testing.assert_array_equal(runs[0], runs[1])  # same seed, same particles
+    # One resampling with jitter: the jittered cloud keeps the resampled cloud's mean and
+    # variance (moment-matched Liu-West kernel) and its noise is uniform.
+    pf = ParticleFilter(np.zeros(3), prior_std=np.ones(3), n_particles=20000, resample=resample,
+                        jitter=0.5, rng=2, ess_threshold=0.0)
+    pf.update(np.array([1.0, 0.5, -0.2]), 0.0, 0.8, 0.7)
+    w = pf.weights
+    X = pf.particles
+    mu = w @ X
+    sd = np.sqrt(w @ (X - mu) ** 2)
+    pf.resample()
+    Y = pf.particles
+    np.testing.assert_allclose(Y.mean(0), mu, atol=0.03)
+    np.testing.assert_allclose(Y.std(0), sd, rtol=0.03)
+    assert np.all(pf.weights == pf.weights[0])
 
 
 # ------------------------------------------------------------------ assimilation
