@@ -12,12 +12,16 @@ import typer
 from ..geometry import LEG_SHAPES
 
 Leg = Enum("Leg", {s: s for s in LEG_SHAPES}, type=str)
+Backend = Enum("Backend", {b: b for b in ("cpu", "gpu", "auto")}, type=str)
 
 sph_app = typer.Typer(help="SPH (Drucker-Prager granular bed) forces and validation scenes.",
                       no_args_is_help=True)
 
 _QUICK = typer.Option(False, "--quick", help="Coarse resolution (4 mm particles) for tests and previews.")
 _DX = typer.Option(None, "--dx-mm", help="Particle spacing, mm [default: 2.5; --quick 4].")
+_BACKEND = typer.Option(Backend.cpu, "--backend",
+                        help="Kernels: cpu (multi-threaded), gpu (NVIDIA, needs the 'gpu' extra) "
+                             "or auto (the GPU when one is usable).")
 _MEDIUM = typer.Option("3 mm glass CP", help="Medium (Li 2013 Table S1 name), e.g. '3 mm glass CP', 'poppy LP'.")
 
 
@@ -38,11 +42,15 @@ def _progress(label: str):
         yield cb
 
 
-def _config(quick: bool, dx_mm: float | None, cfl: float, lowpass_hz: float | None):
+def _config(quick: bool, dx_mm: float | None, cfl: float, lowpass_hz: float | None,
+            backend: str = "cpu"):
     from ..sph.api import default_config
+    from ..sph.solver import resolve_backend
 
-    return default_config(quick, dx=None if dx_mm is None else dx_mm * 1e-3, cfl=cfl,
-                          lowpass_hz=lowpass_hz)
+    cfg = default_config(quick, dx=None if dx_mm is None else dx_mm * 1e-3, cfl=cfl,
+                         lowpass_hz=lowpass_hz, backend=backend)
+    resolve_backend(cfg.backend)  # --backend gpu without a GPU: fail before any work
+    return cfg
 
 
 def _unstable(e) -> None:
@@ -77,6 +85,7 @@ def run_cmd(
     compare_rft: bool = typer.Option(False, help="Also run RFT and print peak differences and MSE."),
     out: Optional[str] = typer.Option(None, "--out", "-o", help="Output .nc, .zarr or .csv [default: CSV on stdout]."),
     plot: Optional[Path] = typer.Option(None, help="Figure of the forces (.png/.pdf/.svg)."),
+    backend: Backend = _BACKEND,
 ):
     """SPH forces (Fx, Fz in N; torque in N m) on a leg moving through a granular bed.
 
@@ -93,7 +102,7 @@ def run_cmd(
     shape = leg_from_field_units(leg.value, leg_file, curvature, length_cm, width_cm)
     motion = motion_from_field_units(False, motion_file, omega, hip_height_cm, theta_start_deg,
                                      theta_end_deg, n_theta)
-    cfg = _config(quick, dx_mm, cfl, lowpass_hz)
+    cfg = _config(quick, dx_mm, cfl, lowpass_hz, Backend(backend).value)
     traj = motion.trajectory()
     snap_t = np.linspace(0, traj.time[-1] - traj.time[0], snapshots) if snapshots else ()
     try:
@@ -182,13 +191,14 @@ def legs_cmd(omega: list[float] = typer.Option([0.2], help="Angular speeds, rad/
              n_theta: int = typer.Option(271, help="Output angles."),
              outdir: Path = typer.Option(Path("results/sph"), help="Directory for series, metrics and figures."),
              checkpoint_dir: Optional[Path] = typer.Option(None, help="Directory for checkpoints (resume)."),
+             backend: Backend = _BACKEND,
              ):
     """Scenes 4-5: the rotating-leg test (SPH vs RFT) for several legs and speeds."""
     from .. import io
     from ..geometry import make_leg
     from ..sph import SPHInstabilityError, plots, validation
 
-    cfg = _config(quick, dx_mm, 0.2, None)
+    cfg = _config(quick, dx_mm, 0.2, None, Backend(backend).value)
     outdir.mkdir(parents=True, exist_ok=True)
     metrics = {}
     for name in legs:

@@ -24,6 +24,40 @@ from . import kernels as K
 from .materials import GranularMaterial
 
 
+#: SPHConfig.backend values.
+BACKENDS = ("cpu", "gpu", "auto")
+#: Solver arrays that the GPU backend keeps on the device between steps: on that backend they
+#: are detached from the solver while the device holds newer data, and reading one copies the
+#: whole state back (see :meth:`Solver.__getattr__`).
+DEVICE_OWNED = ("x", "z", "vx", "vz", "rho", "sxx", "szz", "sxz", "syy", "gvx", "gvz", "acc_x",
+                "acc_z", "nox", "noz", "kind", "fleg", "bad", "sidx", "cell_start", "cell_index")
+
+
+def gpu_available() -> bool:
+    """Whether Numba sees a usable CUDA GPU (True under NUMBA_ENABLE_CUDASIM=1). Imports
+    numba.cuda, so it is called only when a GPU backend may be wanted."""
+    try:
+        from numba import cuda
+    except Exception:  # noqa: BLE001 - no numba.cuda at all: no GPU
+        return False
+    try:
+        return bool(cuda.is_available())
+    except Exception:  # noqa: BLE001 - a broken CUDA install counts as no GPU
+        return False
+
+
+def resolve_backend(name: str) -> str:
+    """"cpu" or "gpu" for a :attr:`SPHConfig.backend` value."""
+    if name == "cpu":
+        return "cpu"
+    ok = gpu_available()
+    if name == "gpu" and not ok:
+        raise InputError("backend", "no CUDA GPU available: use backend='cpu' (a GPU run needs "
+                                    "an NVIDIA GPU and the 'gpu' extra: pip install "
+                                    "'terradyn[gpu]')")
+    return "gpu" if ok else "cpu"
+
+
 class SPHInstabilityError(RuntimeError):
     """The run went unstable: non-finite values or a particle faster than the sound speed."""
 
@@ -42,7 +76,9 @@ class SPHConfig:
     wall_layers: layers of dummy particles; noslip: no-slip (True) or free-slip walls and leg;
     settle_time: damped settling before the motion starts (s; None: 15 bed-depth / sound-speed
     transits); lowpass_hz: optional zero-phase Butterworth low-pass of the recorded forces
-    (None: raw)."""
+    (None: raw); threads: CPU threads (None: Numba's default); backend: "cpu" (Numba,
+    multi-threaded), "gpu" (Numba CUDA, :mod:`terradyn.sph.gpu`; an NVIDIA GPU and the
+    ``gpu`` extra are needed) or "auto" (the GPU when one is usable, else the CPU)."""
 
     dx: float = 2.5e-3
     hdx: float = 1.3
@@ -55,6 +91,7 @@ class SPHConfig:
     settle_time: float | None = None
     lowpass_hz: float | None = None
     threads: int | None = None
+    backend: str = "cpu"
 
     def __post_init__(self):
         positive("dx", self.dx, "m")
@@ -67,6 +104,9 @@ class SPHConfig:
             in_range("settle-time", self.settle_time, 0.0, 100.0, "s")
         if self.lowpass_hz is not None:
             positive("lowpass", self.lowpass_hz, "Hz")
+        if self.backend not in BACKENDS:
+            raise InputError("backend", f"must be one of {', '.join(map(repr, BACKENDS))}, "
+                                        f"got {self.backend!r}")
 
     @property
     def h(self) -> float:
@@ -152,7 +192,9 @@ class Scene:
 
 class Solver:
     """Advances a :class:`Scene`. ``step()`` one step; ``run(t_end)`` many, recording the
-    force on the leg each step."""
+    force on the leg each step. The kernels run on the backend that ``config.backend`` names
+    (:class:`CPUBackend`, or :class:`terradyn.sph.gpu.GPUBackend`, which keeps the particles
+    on the GPU; its arrays here are brought up to date when read, see :meth:`sync_to_host`)."""
 
     def __init__(self, scene: Scene):
         self.scene = scene
@@ -214,6 +256,15 @@ class Solver:
             import numba
 
             numba.set_num_threads(int(cfg.threads))
+        self._held = None
+        self.backend_name = resolve_backend(cfg.backend)
+        if self.backend_name == "gpu":
+            from .gpu import GPUBackend
+
+            self._backend = GPUBackend(self)
+            self._detach()
+        else:
+            self._backend = CPUBackend(self)
 
     # ---------------------------------------------------------------------------------- setup
     def _max_leg_speed(self) -> float:
@@ -247,52 +298,32 @@ class Solver:
     def settling(self) -> bool:
         return self.t < self.settle_time
 
-    def place_leg(self):
+    def pose(self):
+        """The leg's pose now (hip x, z, vx, vz, ax, az, angle, omega, alpha; see
+        :meth:`RigidBody.pose`), or None without a leg."""
         leg = self.scene.leg
         if leg is None:
             return None
         if self.settling:  # the leg waits at its start pose
             hx, hz, _, _, _, _, ang, _, _ = leg.pose(leg.t0)
-            pose = (hx, hz, 0.0, 0.0, 0.0, 0.0, ang, 0.0, 0.0)
-        else:
-            pose = leg.pose(leg.t0 + self.t - self.settle_time)
-        K.place_rigid(self.x, self.z, self.vx, self.vz, self.acc_x, self.acc_z, self.nox,
-                      self.noz, self.lidx, leg.bx, leg.bz, leg.bnx, leg.bnz, *pose)
+            return (hx, hz, 0.0, 0.0, 0.0, 0.0, ang, 0.0, 0.0)
+        return leg.pose(leg.t0 + self.t - self.settle_time)
+
+    def place_leg(self):
+        """Place the leg's particles at its pose now; returns the pose (None without a leg)."""
+        pose = self.pose()
+        if pose is not None:
+            self._backend.place(pose)
         return pose
 
     def step(self):
         """One time step; returns (Fx, Fz, torque) on the leg per unit depth (N/m, N) at the
         start of the step."""
-        mat = self.scene.material
-        cfg = self.scene.config
-        gx, gz = self.scene.gravity
         pose = self.place_leg()
-        hip_x, hip_z, hip_vx, hip_vz = pose[:4] if pose is not None else (0.0,) * 4
-        omega = pose[7] if pose is not None else 0.0
-        K.bin_particles(self.x, self.z, self.xmin, self.zmin, self.inv_cell, self.ncx, self.ncz,
-                        self.cell_start, self.cell_index)
-        grid = (self.xmin, self.zmin, self.inv_cell, self.ncx, self.ncz, self.cell_start,
-                self.cell_index)
-        self._boundaries(gx, gz)
-        K.gather(self.cell_index, self.x, self.z, self.vx, self.vz, self.gvx, self.gvz, self.rho,
-                 self.mass, self.kind, self.nox, self.noz, self.dcl, self.guard, self.sxx, self.szz,
-                 self.sxz, self._srt, self._srtk)
-        K.strain_stress(self._srt, self._srtk, self.cell_index, self.h, *grid[:6], self.rho,
-                        self.sxx, self.szz, self.sxz, self.syy, self.dt, mat.shear_modulus,
-                        mat.bulk_modulus, mat.alpha_phi, mat.k_c, 0.9 * mat.density,
-                        1.1 * mat.density)
-        self._boundaries(gx, gz)
-        K.regather(self.cell_index, self.vx, self.vz, self.gvx, self.gvz, self.rho, self.mass,
-                   self.kind, self.sxx, self.szz, self.sxz, self._srt)
         damping = self.settle_damping if self.settling else 0.0
-        nbad = K.accelerations_kick(
-            self._srt, self._srtk, self.cell_index, self.mass, self.h, self.c0, cfg.av_alpha,
-            cfg.av_beta, cfg.av_boundary, gx, gz, hip_x, hip_z, hip_vx, hip_vz, omega,
-            self.half_t, self.gap, 0.1 * cfg.dx, *grid[:6], self.x, self.z, self.vx, self.vz,
-            self.rho, self.sxx, self.szz, self.dt, damping, self.vmax_allowed, self.fleg,
-            self.bad)
+        nbad, f = self._backend.step(pose, damping)
         if nbad:
-            i = int(np.argmax(self.bad))
+            i = int(np.argmax(self.bad))  # on the GPU backend: copies the state back
             finite = np.isfinite([self.x[i], self.z[i], self.sxx[i], self.szz[i], self.rho[i]]).all()
             reason = (f"speed {math.hypot(self.vx[i], self.vz[i]):.3g} m/s exceeds the sound speed "
                       f"{self.c0:.3g} m/s" if finite else "non-finite position, density or stress")
@@ -303,35 +334,38 @@ class Solver:
             self._drop_lost()
         if self.scene.leg is None:
             return (0.0, 0.0, 0.0)
-        f = self.fleg.sum(axis=0)  # rows of non-granular particles stay 0
-        return (float(f[0]), float(f[1]), float(f[2]))
+        return f
 
     def _drop_lost(self):
         """Park granular particles that left the container far away as kind LOST."""
-        x0, x1, z0 = self._box
-        s = self.sidx
-        out = (self.x[s] < x0) | (self.x[s] > x1) | (self.z[s] < z0)
-        if not out.any():
-            return
-        ids = s[out]
-        self.kind[ids] = K.LOST
-        self.x[ids] = 1e3 + np.arange(len(ids))  # beyond every kernel support
-        self.z[ids] = 1e3
-        for a in (self.vx, self.vz, self.sxx, self.szz, self.sxz, self.syy):
-            a[ids] = 0.0
-        self.fleg[ids] = 0.0
-        self.sidx = np.flatnonzero(self.kind == K.SOIL).astype(np.int64)
-        self.lost += len(ids)
+        self.lost += self._backend.drop_lost(self._box)
 
-    def _boundaries(self, gx, gz):
-        grid = (self.xmin, self.zmin, self.inv_cell, self.ncx, self.ncz, self.cell_start,
-                self.cell_index)
-        for idx in (self.widx, self.lidx):
-            if len(idx):
-                K.boundary_state(self.x, self.z, self.vx, self.vz, self.rho, self.mass, self.kind,
-                                 self.nox, self.noz, self.dcl, self.sxx, self.szz, self.sxz,
-                                 self.syy, self.gvx, self.gvz, idx, self.acc_x, self.acc_z,
-                                 gx, gz, self.h, *grid, self.scene.config.noslip)
+    # ------------------------------------------------------------------ host/device state
+    def _detach(self) -> None:
+        """GPU backend: the device now holds the newer state; take the host copies out of the
+        instance so that reading one goes through :meth:`__getattr__`."""
+        d = self.__dict__
+        self._held = {k: d.pop(k) for k in DEVICE_OWNED}
+
+    def __getattr__(self, name):
+        # Reached only when normal lookup fails: on the GPU backend, for the detached arrays.
+        d = self.__dict__
+        held = d.get("_held")
+        if held is not None and name in DEVICE_OWNED:
+            self.sync_to_host()
+            return d[name]
+        raise AttributeError(f"{type(self).__name__!r} object has no attribute {name!r}")
+
+    def sync_to_host(self) -> None:
+        """Bring the host arrays up to date (GPU backend: copies the device state back; the
+        next step copies the host arrays, edits included, to the device). No-op on the CPU."""
+        d = self.__dict__
+        held = d.get("_held")
+        if held is None:
+            return
+        self._backend.sync_to_host(held)
+        d.update(held)
+        d["_held"] = None
 
     # ------------------------------------------------------------------------------ snapshots
     def snapshot(self) -> dict:
@@ -359,10 +393,88 @@ class Solver:
         self.step_count = int(d["step_count"])
 
 
+class CPUBackend:
+    """The solver's arrays on the host, advanced by the multi-threaded CPU kernels of
+    :mod:`terradyn.sph.kernels`."""
+
+    name = "cpu"
+
+    def __init__(self, solver: Solver):
+        self.s = solver
+
+    def place(self, pose) -> None:
+        s = self.s
+        leg = s.scene.leg
+        K.place_rigid(s.x, s.z, s.vx, s.vz, s.acc_x, s.acc_z, s.nox, s.noz, s.lidx, leg.bx,
+                      leg.bz, leg.bnx, leg.bnz, *pose)
+
+    def step(self, pose, damping):
+        """Pass 1 and 2 of one step (the leg is placed already); returns (number of unstable
+        particles, (Fx, Fz, torque) on the leg per unit depth or None without a leg)."""
+        s = self.s
+        mat = s.scene.material
+        cfg = s.scene.config
+        gx, gz = s.scene.gravity
+        hip_x, hip_z, hip_vx, hip_vz = pose[:4] if pose is not None else (0.0,) * 4
+        omega = pose[7] if pose is not None else 0.0
+        K.bin_particles(s.x, s.z, s.xmin, s.zmin, s.inv_cell, s.ncx, s.ncz, s.cell_start,
+                        s.cell_index)
+        grid = (s.xmin, s.zmin, s.inv_cell, s.ncx, s.ncz, s.cell_start, s.cell_index)
+        self._boundaries(gx, gz)
+        K.gather(s.cell_index, s.x, s.z, s.vx, s.vz, s.gvx, s.gvz, s.rho, s.mass, s.kind, s.nox,
+                 s.noz, s.dcl, s.guard, s.sxx, s.szz, s.sxz, s._srt, s._srtk)
+        K.strain_stress(s._srt, s._srtk, s.cell_index, s.h, *grid[:6], s.rho, s.sxx, s.szz,
+                        s.sxz, s.syy, s.dt, mat.shear_modulus, mat.bulk_modulus, mat.alpha_phi,
+                        mat.k_c, 0.9 * mat.density, 1.1 * mat.density)
+        self._boundaries(gx, gz)
+        K.regather(s.cell_index, s.vx, s.vz, s.gvx, s.gvz, s.rho, s.mass, s.kind, s.sxx, s.szz,
+                   s.sxz, s._srt)
+        nbad = K.accelerations_kick(
+            s._srt, s._srtk, s.cell_index, s.mass, s.h, s.c0, cfg.av_alpha, cfg.av_beta,
+            cfg.av_boundary, gx, gz, hip_x, hip_z, hip_vx, hip_vz, omega, s.half_t, s.gap,
+            0.1 * cfg.dx, *grid[:6], s.x, s.z, s.vx, s.vz, s.rho, s.sxx, s.szz, s.dt, damping,
+            s.vmax_allowed, s.fleg, s.bad)
+        if nbad or s.scene.leg is None:
+            return nbad, None
+        f = s.fleg.sum(axis=0)  # rows of non-granular particles stay 0
+        return nbad, (float(f[0]), float(f[1]), float(f[2]))
+
+    def _boundaries(self, gx, gz):
+        s = self.s
+        grid = (s.xmin, s.zmin, s.inv_cell, s.ncx, s.ncz, s.cell_start, s.cell_index)
+        for idx in (s.widx, s.lidx):
+            if len(idx):
+                K.boundary_state(s.x, s.z, s.vx, s.vz, s.rho, s.mass, s.kind, s.nox, s.noz, s.dcl,
+                                 s.sxx, s.szz, s.sxz, s.syy, s.gvx, s.gvz, idx, s.acc_x, s.acc_z,
+                                 gx, gz, s.h, *grid, s.scene.config.noslip)
+
+    def drop_lost(self, box) -> int:
+        s = self.s
+        x0, x1, z0 = box
+        sidx = s.sidx
+        out = (s.x[sidx] < x0) | (s.x[sidx] > x1) | (s.z[sidx] < z0)
+        if not out.any():
+            return 0
+        ids = sidx[out]
+        s.kind[ids] = K.LOST
+        s.x[ids] = 1e3 + np.arange(len(ids))  # beyond every kernel support
+        s.z[ids] = 1e3
+        for a in (s.vx, s.vz, s.sxx, s.szz, s.sxz, s.syy):
+            a[ids] = 0.0
+        s.fleg[ids] = 0.0
+        s.sidx = np.flatnonzero(s.kind == K.SOIL).astype(np.int64)
+        return len(ids)
+
+    def sync_to_host(self, arrays) -> None:
+        pass
+
+
 def scene_key(scene: Scene, extra: dict | None = None) -> str:
     """A hash of everything that defines a run (for checkpoints)."""
     h = hashlib.sha256()
-    h.update(json.dumps({"config": asdict(scene.config), "material": scene.material.describe(),
+    # the backend does not change the run: a checkpoint of one resumes on the other
+    cfg = {k: v for k, v in asdict(scene.config).items() if k != "backend"}
+    h.update(json.dumps({"config": cfg, "material": scene.material.describe(),
                          "meta": scene.meta, "extra": extra or {}}, sort_keys=True,
                         default=str).encode())
     p = scene.particles
