@@ -75,6 +75,40 @@ def test_cell_list_finds_exactly_the_brute_force_neighbours():
         assert found == brute
 
 
+def test_pass_two_reuses_pass_one_neighbours_and_falls_back_when_the_list_overflows():
+    """Pass 1 records each granular particle's neighbours (inside the support, on its side of
+    the leg) and pass 2 reuses them; a particle with more neighbours than the list holds is
+    searched again. Both give the same motion and leg force, and the recorded counts are the
+    brute-force counts."""
+    leg = td.flat_leg()
+    traj = td.Rotation(omega=2.0, hip_height=0.02, theta_start=-65 * DEG, theta_end=-55 * DEG,
+                       n_theta=5).trajectory()
+    cfg = SPHConfig(dx=5e-3, settle_time=0.0)
+    runs = []
+    for maxn in (None, 3):  # 3: every list overflows, pass 2 searches the cells
+        s = solver.Solver(scenes.leg_scene(leg, traj, 0, bed_width=0.16, bed_depth=0.04,
+                                           config=cfg))
+        if maxn:
+            s._backend.nb = tuple(np.zeros((s.n, maxn), a.dtype) if a.ndim == 2 else a
+                                  for a in s._backend.nb)
+        f = [s.step() for _ in range(40)]
+        runs.append((s, np.array([x for x in f if x is not None])))
+    (a, fa), (b, fb) = runs
+    assert np.all(b._backend.nb[2][b._srtk[0] == K.SOIL] == -1)
+    assert np.allclose(a.x, b.x, rtol=0, atol=1e-12) and np.allclose(a.vz, b.vz, atol=1e-9)
+    assert np.abs(fa[:, 1]).max() > 0 and np.allclose(fa, fb, rtol=1e-9, atol=1e-12)
+    # counts against brute force for granular particles with no leg particle in reach
+    nbn = a._backend.nb[2]
+    X, Z, KND = a._srt[0], a._srt[1], a._srtk[0]
+    checked = 0
+    for k in np.flatnonzero(KND == K.SOIL)[::7]:
+        inside = np.hypot(X - X[k], Z - Z[k]) < 2 * a.h
+        if not (KND[inside] == K.LEG).any():
+            assert nbn[k] == np.count_nonzero(inside)
+            checked += 1
+    assert checked > 20
+
+
 def _stress_step(s, L, dt=1e-3, mat=MATERIALS["3 mm glass CP"]):
     """Advance one stress state (sxx, szz, sxz, syy) by a velocity gradient L (2x2)."""
     arr = [np.array([v], float) for v in s]

@@ -173,6 +173,7 @@ _PTX = textwrap.dedent(r'''
     S, srt, srtk = np.zeros((18, n)), np.zeros((11, n)), np.zeros((3, n))
     kind, bad, fleg, acc = np.zeros(n, np.int8), np.zeros(n, np.int8), np.zeros((n, 3)), np.zeros(4)
     i32 = lambda m: np.zeros(m, np.int32)
+    nb = G.K.neighbour_list(n, 1.3)
     grid = (1.0, 1.0, 1.0, 1.0, 3, 4)
     par_s = grid + (1.0,) * 7
     par_a = G.K.SOURCES["_accel_par"](*(1.0,) * 4, True, *(1.0,) * 13, 3, 4, 1.0, 1.0, 1.0)
@@ -187,8 +188,8 @@ _PTX = textwrap.dedent(r'''
         "_k_boundary": (S, kind, i32(10), (1.0, 1.0), grid, i32(nc + 1), i32(n), True),
         "_k_gather": (i32(n), S, kind, srt, srtk),
         "_k_regather": (i32(n), S, kind, srt),
-        "_k_strain": (srt, srtk, i32(n), i32(nc + 1), S, par_s),
-        "_k_accel": (srt, srtk, i32(n), i32(nc + 1), S, fleg, bad, par_a, acc),
+        "_k_strain": (srt, srtk, i32(n), i32(nc + 1), S, *nb, par_s),
+        "_k_accel": (srt, srtk, i32(n), i32(nc + 1), S, fleg, bad, *nb, par_a, acc),
         "_k_drop": (S, kind, fleg, 1.0, 1.0, 1.0, i32(1)),
     }
     for name, a in args.items():

@@ -266,21 +266,21 @@ def _k_regather(cell_index, S, kind, srt):
 
 
 @cuda.jit
-def _k_strain(srt, srtk, cell_index, cell_start, S, par):
+def _k_strain(srt, srtk, cell_index, cell_start, S, nbj, nbw, nbn, par):
     for k in range(cuda.grid(1), cell_index.shape[0], cuda.gridsize(1)):
         _strain_stress_one(k, srt[0], srt[1], srt[2], srt[3], srt[7], srt[8], srt[9], srt[10],
                            srtk[0], srtk[1], cell_index, cell_start, S[RHO], S[SXX], S[SZZ],
-                           S[SXZ], S[SYY], par)
+                           S[SXZ], S[SYY], nbj, nbw, nbn, par)
 
 
 @cuda.jit
-def _k_accel(srt, srtk, cell_index, cell_start, S, fleg, bad, par, acc):
+def _k_accel(srt, srtk, cell_index, cell_start, S, fleg, bad, nbj, nbw, nbn, par, acc):
     """Pass 2 for one particle; acc[0:3] += its force on the leg, acc[3] += 1 if unstable."""
     for k in range(cuda.grid(1), cell_index.shape[0], cuda.gridsize(1)):
         nb = _accel_kick_one(k, srt[0], srt[1], srt[2], srt[3], srt[4], srt[5], srt[6], srt[7],
                              srt[8], srt[9], srt[10], srtk[0], srtk[1], srtk[2], cell_index,
                              cell_start, S[MASS], S[X], S[Z], S[VX], S[VZ], S[RHO], S[SXX],
-                             S[SZZ], fleg, bad, par)
+                             S[SZZ], fleg, bad, (nbj, nbw, nbn), par)
         if nb != 0:
             cuda.atomic.add(acc, 3, 1.0)
         if srtk[0, k] == SOIL:
@@ -335,6 +335,7 @@ class GPUBackend:
         self.bad = cuda.device_array(n, np.int8)
         self.srt = cuda.device_array((11, n), np.float64)
         self.srtk = cuda.device_array((3, n), np.float64)
+        self.nb = tuple(cuda.to_device(a) for a in K.neighbour_list(n, s.scene.config.hdx))
         self.bins = DeviceBins(n, s.ncx, s.ncz)
         self.acc = cuda.device_array(4, np.float64)
         self.cnt = cuda.device_array(1, np.int32)
@@ -418,7 +419,8 @@ class GPUBackend:
         par = (h, xmin, zmin, inv_cell, ncx, ncz, dt, float(mat.shear_modulus),
                float(mat.bulk_modulus), float(mat.alpha_phi), float(mat.k_c),
                float(0.9 * mat.density), float(1.1 * mat.density))
-        _k_strain[nb, TPB](self.srt, self.srtk, b.cell_index, b.cell_start, self.S, par)
+        _k_strain[nb, TPB](self.srt, self.srtk, b.cell_index, b.cell_start, self.S, *self.nb,
+                           par)
         self._boundaries(grav, grid, noslip)
         _k_regather[nb, TPB](b.cell_index, self.S, self.kind, self.srt)
         hip_x, hip_z, hip_vx, hip_vz = (float(v) for v in pose[:4]) if pose else (0.0,) * 4
@@ -429,7 +431,7 @@ class GPUBackend:
             float(0.1 * cfg.dx), xmin, zmin, inv_cell, ncx, ncz, dt, float(damping),
             float(s.vmax_allowed))
         _k_accel[nb, TPB](self.srt, self.srtk, b.cell_index, b.cell_start, self.S, self.fleg,
-                          self.bad, par, self.acc)
+                          self.bad, *self.nb, par, self.acc)
         a = self.acc.copy_to_host()
         return int(a[3]), (float(a[0]), float(a[1]), float(a[2]))
 

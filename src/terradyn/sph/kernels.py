@@ -262,9 +262,11 @@ def _regather_one(k, cell_index, vx, vz, gvx, gvz, rho, mass, kind, sxx, szz, sx
 
 @_source
 def _strain_stress_one(k, X, Z, VX, VZ, VOL, RHO, NOX, NOZ, KND, DCL, cell_index, cell_start,
-                       rho, sxx, szz, sxz, syy, par):
+                       rho, sxx, szz, sxz, syy, nbj, nbw, nbn, par):
     """Column ``k`` (cell order) of :func:`strain_stress`: the velocity gradient and new
-    density and stress of its particle if granular. X ... DCL: rows of the gathered copy; par
+    density and stress of its particle if granular, and its neighbour list for pass 2 (nbj:
+their columns, nbw: kernel-gradient factors, nbn: count, -1 past nbj's width; separate
+arguments, not a tuple: see :func:`_accel_kick_one`). X ... DCL: rows of the gathered copy; par
     = (h, xmin, zmin, inv_cell, ncx, ncz, dt, shear_mod, bulk_mod, alpha_phi, k_c, rho_min,
     rho_max)."""
     if KND[k] != SOIL:
@@ -287,6 +289,8 @@ def _strain_stress_one(k, X, Z, VX, VZ, VOL, RHO, NOX, NOZ, KND, DCL, cell_index
     gxz = 0.0
     gzx = 0.0
     gzz = 0.0
+    cnt = 0
+    maxn = nbj.shape[1]
     for dz in range(-REACH, REACH + 1):
         iz = cz + dz
         if iz < 0 or iz >= ncz:
@@ -303,6 +307,10 @@ def _strain_stress_one(k, X, Z, VX, VZ, VOL, RHO, NOX, NOZ, KND, DCL, cell_index
                 continue
             t = 1.0 - 0.5 * math.sqrt(r2) * inv_h
             fdw = dwc * t * t * t
+            if cnt < maxn:
+                nbj[k, cnt] = j
+                nbw[k, cnt] = fdw
+            cnt += 1
             gwx = fdw * rx
             gwz = fdw * rz
             vxij = vxi - VX[j]
@@ -313,18 +321,67 @@ def _strain_stress_one(k, X, Z, VX, VZ, VOL, RHO, NOX, NOZ, KND, DCL, cell_index
             gxz -= volj * vxij * gwz
             gzx -= volj * vzij * gwx
             gzz -= volj * vzij * gwz
+    nbn[k] = cnt if cnt <= maxn else -1
     rho[i], sxx[i], szz[i], sxz[i], syy[i] = dp_update(
         rho[i], dr, gxx, gxz, gzx, gzz, sxx[i], szz[i], sxz[i], syy[i], dt, shear_mod,
         bulk_mod, alpha_phi, k_c, rho_min, rho_max)
 
 
 @_source
+def _accel_pair(j, fdw, X, Z, VX, VZ, PXX, PZZ, PXZ, VOL, RHO, NOX, NOZ, KND, DCL, GRD, pp,
+                acc):
+    """One neighbour ``j`` (column of the gathered copy, inside the support, on the same side
+    of the leg) of :func:`_accel_kick_one`'s particle; fdw: the kernel gradient factor
+    (grad W = fdw r_ij). pp: that particle's scalars, acc: its running sums (a_x, a_z, fx, fz,
+    torque, dmin, pnx, pnz); returns the updated sums."""
+    (h, h2, c0, av_alpha, av_beta, av_boundary, half_t, hip_x, hip_z, xi, zi, vxi, vzi, rhoi,
+     pxx, pzz, pxz, mi) = pp
+    a_x, a_z, fx, fz, tq, dmin, pnx, pnz = acc
+    rx = xi - X[j]
+    rz = zi - Z[j]
+    r2 = rx * rx + rz * rz
+    kj = KND[j]
+    gwx = fdw * rx
+    gwz = fdw * rz
+    vdotr = (vxi - VX[j]) * rx + (vzi - VZ[j]) * rz
+    rhoj = RHO[j]
+    mj = VOL[j] * rhoj
+    pi_ij = 0.0
+    if vdotr < 0.0 and (kj == SOIL or av_boundary):
+        mu = h * vdotr / (r2 + 0.01 * h2)
+        pi_ij = (-av_alpha * c0 * mu + av_beta * mu * mu) / (0.5 * (rhoi + rhoj))
+    txx = pxx + PXX[j] - pi_ij
+    tzz = pzz + PZZ[j] - pi_ij
+    txz = pxz + PXZ[j]
+    pax = mj * (txx * gwx + txz * gwz)
+    paz = mj * (txz * gwx + tzz * gwz)
+    a_x += pax
+    a_z += paz
+    if kj == LEG:
+        if GRD[j] > 0.0:
+            dn = rx * NOX[j] + rz * NOZ[j] + DCL[j] - half_t
+            if dn < dmin:
+                dmin = dn
+                pnx = NOX[j]
+                pnz = NOZ[j]
+        # reaction on the leg, applied at the leg particle
+        fx -= mi * pax
+        fz -= mi * paz
+        tq -= mi * ((X[j] - hip_x) * paz - (Z[j] - hip_z) * pax)
+    return (a_x, a_z, fx, fz, tq, dmin, pnx, pnz)
+
+
+@_source
 def _accel_kick_one(k, X, Z, VX, VZ, PXX, PZZ, PXZ, VOL, RHO, NOX, NOZ, KND, DCL, GRD,
-                    cell_index, cell_start, mass, x, z, vx, vz, rho, sxx, szz, fleg, bad, par):
+                    cell_index, cell_start, mass, x, z, vx, vz, rho, sxx, szz, fleg, bad, nb,
+                    par):
     """Column ``k`` (cell order) of :func:`accelerations_kick`: acceleration, force on the
     leg, contact guard, kick and drift of its particle if granular. Returns 1 if the particle
     went non-finite or too fast, else 0 (also 0 for non-granular columns). X ... GRD: rows of
-    the gathered copy; par: the scalars (see :func:`_accel_par`)."""
+    the gathered copy; nb = (nbj, nbw, nbn): the neighbour list of pass 1, read only (Numba
+0.68 loses writes to arrays passed in a tuple to a function inlined into a prange loop) (positions have not moved
+since; a negative count: list overflowed, search the cells again); par: the scalars (see
+:func:`_accel_par`)."""
     if KND[k] != SOIL:
         return 0
     (h, xmin, zmin, inv_cell, ncx, ncz, c0, av_alpha, av_beta, av_boundary, gx, gz, hip_x,
@@ -352,52 +409,36 @@ def _accel_kick_one(k, X, Z, VX, VZ, PXX, PZZ, PXZ, VOL, RHO, NOX, NOZ, KND, DCL
     fx = 0.0
     fz = 0.0
     tq = 0.0
-    for dz in range(-REACH, REACH + 1):
-        iz = cz + dz
-        if iz < 0 or iz >= ncz:
-            continue
-        c0x = max(cx - REACH, 0)
-        c1x = min(cx + REACH, ncx - 1)
-        # the cells of a row are contiguous in cell order
-        for j in range(cell_start[iz * ncx + c0x], cell_start[iz * ncx + c1x + 1]):
-            rx = xi - X[j]
-            rz = zi - Z[j]
-            r2 = rx * rx + rz * rz
-            if r2 >= sup2:
+    acc = (a_x, a_z, fx, fz, tq, dmin, pnx, pnz)
+    pp = (h, h2, c0, av_alpha, av_beta, av_boundary, half_t, hip_x, hip_z, xi, zi, vxi, vzi,
+          rhoi, pxx, pzz, pxz, mass[i])
+    nbj, nbw, nbn = nb
+    cnt = nbn[k]
+    if cnt >= 0:
+        for n in range(cnt):
+            j = nbj[k, n]
+            acc = _accel_pair(j, nbw[k, n], X, Z, VX, VZ, PXX, PZZ, PXZ, VOL, RHO, NOX, NOZ, KND,
+                              DCL, GRD, pp, acc)
+    else:
+        for dz in range(-REACH, REACH + 1):
+            iz = cz + dz
+            if iz < 0 or iz >= ncz:
                 continue
-            kj = KND[j]
-            if kj == LEG and (rx * NOX[j] + rz * NOZ[j] + DCL[j]) <= 0.0:
-                continue  # material on the other side of the thin leg
-            t = 1.0 - 0.5 * math.sqrt(r2) * inv_h
-            fdw = dwc * t * t * t
-            gwx = fdw * rx
-            gwz = fdw * rz
-            vdotr = (vxi - VX[j]) * rx + (vzi - VZ[j]) * rz
-            rhoj = RHO[j]
-            mj = VOL[j] * rhoj
-            pi_ij = 0.0
-            if vdotr < 0.0 and (kj == SOIL or av_boundary):
-                mu = h * vdotr / (r2 + 0.01 * h2)
-                pi_ij = (-av_alpha * c0 * mu + av_beta * mu * mu) / (0.5 * (rhoi + rhoj))
-            txx = pxx + PXX[j] - pi_ij
-            tzz = pzz + PZZ[j] - pi_ij
-            txz = pxz + PXZ[j]
-            pax = mj * (txx * gwx + txz * gwz)
-            paz = mj * (txz * gwx + tzz * gwz)
-            a_x += pax
-            a_z += paz
-            if kj == LEG:
-                if GRD[j] > 0.0:
-                    dn = rx * NOX[j] + rz * NOZ[j] + DCL[j] - half_t
-                    if dn < dmin:
-                        dmin = dn
-                        pnx = NOX[j]
-                        pnz = NOZ[j]
-                # reaction on the leg, applied at the leg particle
-                mi = mass[i]
-                fx -= mi * pax
-                fz -= mi * paz
-                tq -= mi * ((X[j] - hip_x) * paz - (Z[j] - hip_z) * pax)
+            c0x = max(cx - REACH, 0)
+            c1x = min(cx + REACH, ncx - 1)
+            for j in range(cell_start[iz * ncx + c0x], cell_start[iz * ncx + c1x + 1]):
+                rx = xi - X[j]
+                rz = zi - Z[j]
+                r2 = rx * rx + rz * rz
+                if r2 >= sup2:
+                    continue
+                if KND[j] == LEG and (rx * NOX[j] + rz * NOZ[j] + DCL[j]) <= 0.0:
+                    continue  # material on the other side of the thin leg
+                t = 1.0 - 0.5 * math.sqrt(r2) * inv_h
+                acc = _accel_pair(j, dwc * t * t * t, X, Z, VX, VZ, PXX, PZZ, PXZ, VOL, RHO, NOX,
+                                  NOZ, KND, DCL, GRD, pp, acc)
+    a_x, a_z, fx, fz, tq, dmin, pnx, pnz = acc
+
     # kick, contact, drift
     nvx = (vxi + dt * (a_x + gx)) * fdamp
     nvz = (vzi + dt * (a_z + gz)) * fdamp
@@ -458,6 +499,17 @@ def _place_one(kk, c, s, x, z, vx, vz, acc_x, acc_z, nox, noz, lidx, bx, bz, bnx
     acc_z[w] = hip_az - alpha * rx - omega * omega * rz
     nox[w] = c * bnx[kk] + s * bnz[kk]
     noz[w] = -s * bnx[kk] + c * bnz[kk]
+
+
+def neighbour_list(n: int, hdx: float, xp=np):
+    """Arrays of the neighbour list that pass 1 records and pass 2 reuses (positions do not
+    move between them): column ids (n, maxn) int32, kernel-gradient factors (n, maxn) and
+    counts (n,) int32 (-1: more than maxn neighbours, pass 2 searches the cells again).
+    maxn: 1.5 x the neighbours of a square lattice at h = hdx dx (pi (2 hdx)^2), room for
+    strong compression."""
+    maxn = int(math.ceil(1.5 * math.pi * (2.0 * hdx) ** 2)) + 8
+    return (xp.zeros((n, maxn), np.int32), xp.zeros((n, maxn), np.float64),
+            xp.zeros(n, np.int32))
 
 
 # ------------------------------------------------------------------ CPU kernels (prange)
@@ -524,7 +576,7 @@ def regather(cell_index, vx, vz, gvx, gvz, rho, mass, kind, sxx, szz, sxz, out_f
 @numba.njit(parallel=True, fastmath=True, cache=True)
 def strain_stress(srt, srtk, cell_index, h, xmin, zmin, inv_cell, ncx, ncz, cell_start,
                   rho, sxx, szz, sxz, syy, dt, shear_mod, bulk_mod, alpha_phi, k_c, rho_min,
-                  rho_max):
+                  rho_max, nbj, nbw, nbn):
     """First pass (velocities only): d rho/dt and the velocity gradient L of every granular
     particle (lxx = dvx/dx, lxz = dvx/dz, ...), then its new density and stress
     (:func:`dp_update`). Reads only the cell-ordered copies made by :func:`gather`, so it can
@@ -543,14 +595,14 @@ def strain_stress(srt, srtk, cell_index, h, xmin, zmin, inv_cell, ncx, ncz, cell
            rho_max)
     for k in prange(cell_index.shape[0]):
         _strain_stress_one(k, X, Z, VX, VZ, VOL, RHO, NOX, NOZ, KND, DCL, cell_index, cell_start,
-                           rho, sxx, szz, sxz, syy, par)
+                           rho, sxx, szz, sxz, syy, nbj, nbw, nbn, par)
 
 
 @numba.njit(parallel=True, fastmath=_FM, cache=True)  # _FM: the NaN checks must stay
 def accelerations_kick(srt, srtk, cell_index, mass, h, c0, av_alpha, av_beta, av_boundary, gx,
                        gz, hip_x, hip_z, hip_vx, hip_vz, omega, half_t, gap, max_push, xmin, zmin,
                        inv_cell, ncx, ncz, cell_start, x, z, vx, vz, rho, sxx, szz, dt, damping,
-                       vmax_allowed, fleg, bad):
+                       vmax_allowed, fleg, bad, nbj, nbw, nbn):
     """Second pass (stresses): acceleration of every granular particle, the force it exerts on
     the leg (fleg[i] = (Fx, Fz, torque about (hip_x, hip_z)), per unit depth), and its kick and
     drift: v += dt a (optionally damped), x += dt v (symplectic Euler). The pass reads only the
@@ -591,7 +643,7 @@ def accelerations_kick(srt, srtk, cell_index, mass, h, c0, av_alpha, av_beta, av
     for k in prange(cell_index.shape[0]):
         nbad += _accel_kick_one(k, X, Z, VX, VZ, PXX, PZZ, PXZ, VOL, RHO, NOX, NOZ, KND, DCL, GRD,
                                 cell_index, cell_start, mass, x, z, vx, vz, rho, sxx, szz, fleg,
-                                bad, par)
+                                bad, (nbj, nbw, nbn), par)
     return nbad
 
 

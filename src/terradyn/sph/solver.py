@@ -401,6 +401,7 @@ class CPUBackend:
 
     def __init__(self, solver: Solver):
         self.s = solver
+        self.nb = K.neighbour_list(solver.n, solver.scene.config.hdx)
 
     def place(self, pose) -> None:
         s = self.s
@@ -425,7 +426,7 @@ class CPUBackend:
                  s.noz, s.dcl, s.guard, s.sxx, s.szz, s.sxz, s._srt, s._srtk)
         K.strain_stress(s._srt, s._srtk, s.cell_index, s.h, *grid[:6], s.rho, s.sxx, s.szz,
                         s.sxz, s.syy, s.dt, mat.shear_modulus, mat.bulk_modulus, mat.alpha_phi,
-                        mat.k_c, 0.9 * mat.density, 1.1 * mat.density)
+                        mat.k_c, 0.9 * mat.density, 1.1 * mat.density, *self.nb)
         self._boundaries(gx, gz)
         K.regather(s.cell_index, s.vx, s.vz, s.gvx, s.gvz, s.rho, s.mass, s.kind, s.sxx, s.szz,
                    s.sxz, s._srt)
@@ -433,7 +434,7 @@ class CPUBackend:
             s._srt, s._srtk, s.cell_index, s.mass, s.h, s.c0, cfg.av_alpha, cfg.av_beta,
             cfg.av_boundary, gx, gz, hip_x, hip_z, hip_vx, hip_vz, omega, s.half_t, s.gap,
             0.1 * cfg.dx, *grid[:6], s.x, s.z, s.vx, s.vz, s.rho, s.sxx, s.szz, s.dt, damping,
-            s.vmax_allowed, s.fleg, s.bad)
+            s.vmax_allowed, s.fleg, s.bad, *self.nb)
         if nbad or s.scene.leg is None:
             return nbad, None
         f = s.fleg.sum(axis=0)  # rows of non-granular particles stay 0
