@@ -294,6 +294,11 @@ def test_checkpoint_resume_reproduces_the_uninterrupted_run(tmp_path):
     again = solver.run(mk(), 0.08, checkpoint=ck)
     assert again.steps == full.steps and not ck.exists()
     assert np.allclose(again.Fz, full.Fz) and np.allclose(again.solver.x, full.solver.x)
+    assert not list(tmp_path.glob("*.tmp.npz"))  # no temporary files left behind
+    # a truncated checkpoint (a disk that filled up, a copy cut short) is ignored, not fatal
+    ck.write_bytes(b"PK\x03\x04 truncated")
+    fresh = solver.run(mk(), 0.08, checkpoint=ck)
+    assert fresh.steps == full.steps and np.allclose(fresh.Fz, full.Fz) and not ck.exists()
 
 
 def test_config_rejects_bad_input():

@@ -11,6 +11,8 @@ import hashlib
 import json
 import math
 import os
+import uuid
+import zipfile
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
 from typing import Callable
@@ -532,8 +534,8 @@ def run(scene: Scene, duration: float, *, snapshot_times=(), checkpoint: str | P
                     solver.load_state(d)
                     nrec = int(d["nrec"])
                     rec[:nrec] = d["rec"][:nrec]
-        except (OSError, KeyError, ValueError):
-            pass  # unreadable checkpoint: start afresh
+        except (OSError, KeyError, ValueError, EOFError, zipfile.BadZipFile):
+            pass  # unreadable (e.g. truncated) checkpoint: start afresh
     t0 = _time.perf_counter()
     last_ck = t0
     si = sum(1 for t in snap_times if t < solver.t - solver.settle_time)
@@ -558,8 +560,8 @@ def run(scene: Scene, duration: float, *, snapshot_times=(), checkpoint: str | P
         si += 1
     if progress is not None:
         progress(t_total, t_total)
-    if ck is not None and ck.exists():
-        ck.unlink()
+    if ck is not None:
+        ck.unlink(missing_ok=True)  # two runs of one scene may race to finish
     rec = rec[:nrec]
     res = RunResult(rec[:, 0], rec[:, 1], rec[:, 2], rec[:, 3], snaps, solver.step_count,
                     solver.dt, _time.perf_counter() - t0, solver.n)
@@ -569,10 +571,17 @@ def run(scene: Scene, duration: float, *, snapshot_times=(), checkpoint: str | P
 
 
 def _save_checkpoint(path: Path, solver: Solver, key: str, rec, nrec) -> None:
+    """Write the state next to ``path`` under a name of this process's own, then rename it
+    over ``path`` (atomic): a kill leaves the old checkpoint or the new one, never half of
+    one, and two processes checkpointing the same scene never write into one file."""
     path.parent.mkdir(parents=True, exist_ok=True)
-    tmp = path.with_name(path.name + ".tmp.npz")
-    np.savez(tmp, key=np.array(key), nrec=np.array(nrec), rec=rec[:nrec], **solver.state_dict())
-    os.replace(tmp, path)
+    tmp = path.with_name(f"{path.name}.{os.getpid()}.{uuid.uuid4().hex[:8]}.tmp.npz")
+    try:
+        np.savez(tmp, key=np.array(key), nrec=np.array(nrec), rec=rec[:nrec],
+                 **solver.state_dict())
+        os.replace(tmp, path)
+    finally:
+        tmp.unlink(missing_ok=True)
 
 
 def lowpass(t: np.ndarray, y: np.ndarray, cutoff_hz: float, order: int = 4) -> np.ndarray:
