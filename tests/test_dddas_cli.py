@@ -66,3 +66,30 @@ def test_experiment_synth_and_calibrate(tmp_path, capsys):
     r = json.loads(capsys.readouterr().out)
     assert abs(r["values"]["length_cm"] - 28.0) < 0.3
     assert main(["experiment", "filter", str(p), "--cutoff-hz", "500"]) == 2
+
+
+def test_study_legs_data_keywords(tmp_path, capsys, monkeypatch):
+    """`--data rft` asks for RFT-generated data (the default is the shipped SPH set); the
+    printed summary names the data; `--data sph` without the dataset fails cleanly."""
+    from terradyn.dddas import studies
+
+    real, small = studies.legs_study, studies.rft_standin
+    seen = []
+
+    def tiny(out, data, **kw):  # one leg, four hip heights: seconds
+        seen.append(data)
+        return real(out, data, legs=("flat",), **{**kw, "particles": 200})
+
+    monkeypatch.setattr(studies, "legs_study", tiny)
+    monkeypatch.setattr(studies, "rft_standin",
+                        lambda shape, n_theta=31: small(shape, hip_heights_cm=[1.0, 1.75, 2.5, 3.25], n_theta=21))
+    assert main(["dddas", "study", "legs", "--data", "rft", "-o", str(tmp_path)]) == 0
+    assert seen == [{"all": "rft"}]
+    cap = capsys.readouterr()
+    s = json.loads(cap.out)
+    assert s["data"]["requested"] == "rft" and s["legs"]["flat"]["source"] == "rft-standin"
+    assert "flat: RFT-generated stand-in;" in cap.err and "LOO CV mean MSE" in cap.err
+    monkeypatch.setattr(studies, "find_sph_dataset", lambda: None)
+    assert main(["dddas", "study", "legs", "--data", "sph", "-o", str(tmp_path)]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "sph_legs_speeds.nc not found" in err[0]

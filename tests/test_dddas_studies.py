@@ -82,3 +82,97 @@ def test_one_dataset_for_all_legs_is_split_by_its_shape_coordinate():
     np.testing.assert_array_equal(parts["c"].Fz.values, b.Fz.values)
     with pytest.raises(InputError, match="shape"):
         split_by_leg(a)
+
+
+# -- Which data the legs study uses: the shipped SPH set by default, RFT on request or as a
+# -- labelled fallback. Runs use small subsets so that they take seconds.
+
+def test_default_data_is_the_shipped_sph_dataset():
+    path = studies.find_sph_dataset()
+    assert path is not None and path.name == "sph_legs_speeds.nc" and path.parent.name == "datasets"
+    legs, info = studies.resolve_legs_data()
+    assert info["requested"] == "default" and not info["fallback_to_rft"] and info["sph_dataset"] == str(path)
+    assert list(legs) == ["flat", "c", "reverse-c"]
+    for leg, r in legs.items():
+        assert r["source"] == "sph" and not r["fallback"] and r["file"] == str(path)
+        assert r["label"] == "SPH data: sph_legs_speeds.nc" and "SPH" in r["note"]
+        ds = r["data"]
+        assert ds.sizes["case"] == 10 and "shape" not in ds.coords
+        np.testing.assert_allclose(ds["omega_rad_s"].values, np.round(np.arange(0.2, 1.15, 0.1), 2))
+    # The keyword 'sph' is the same data; 'rft' does not even look for it.
+    assert studies.resolve_legs_data("sph", legs=("c",))[0]["c"]["file"] == str(path)
+
+
+def test_rft_on_request_never_looks_for_sph(monkeypatch):
+    def boom():
+        raise AssertionError("looked for the SPH dataset")
+
+    monkeypatch.setattr(studies, "find_sph_dataset", boom)
+    legs, info = studies.resolve_legs_data("rft")
+    assert info["requested"] == "rft" and not info["fallback_to_rft"]
+    for r in legs.values():
+        assert r["data"] is None and r["source"] == "rft-standin" and not r["fallback"]
+        assert r["label"] == "RFT-generated stand-in" and r["note"] == studies.STANDIN_NOTE
+    monkeypatch.undo()
+    mixed, info = studies.resolve_legs_data({"flat": "rft"})
+    assert info["requested"] == "per-leg"
+    assert [r["source"] for r in mixed.values()] == ["rft-standin", "sph", "sph"]
+    with pytest.raises(InputError, match="unknown leg"):
+        studies.resolve_legs_data({"hind": "rft"})
+
+
+def test_missing_sph_dataset_falls_back_to_rft_and_says_so(monkeypatch, tmp_path):
+    monkeypatch.setattr(studies, "find_sph_dataset", lambda: None)
+    with pytest.raises(InputError, match="not found"):
+        studies.resolve_legs_data("sph")
+    legs, info = studies.resolve_legs_data()
+    assert info["fallback_to_rft"] and "not found" in info["message"] and "RFT" in info["message"]
+    assert all(r["fallback"] and r["source"] == "rft-standin" and "not found" in r["label"] for r in legs.values())
+    # End to end on a small stand-in: the warning, the saved metadata and the summary say RFT.
+    small = studies.rft_standin
+    monkeypatch.setattr(studies, "rft_standin",
+                        lambda shape, n_theta=31: small(shape, hip_heights_cm=[1.0, 1.75, 2.5, 3.25], n_theta=21))
+    with pytest.warns(UserWarning, match="falling back to RFT-generated data"):
+        s = studies.legs_study(tmp_path, legs=("flat",), particles=300)
+    leg = s["legs"]["flat"]
+    assert s["data"]["fallback_to_rft"] and leg["fallback_to_rft"] and leg["source"] == "rft-standin"
+    assert leg["inputs"] == ["hip_height_cm"] and "not found" in leg["note"]
+    for f in ("flat_data.nc", "flat_posterior_pf.nc"):
+        a = td.io.read(tmp_path / f).attrs
+        assert a["dddas_source"] == "rft-standin" and "RFT-generated" in a["dddas_data"] and "not found" in a["dddas_note"]
+    assert json.loads((tmp_path / "summary.json").read_text())["data"]["fallback_to_rft"] is True
+
+
+def test_legs_study_runs_on_the_sph_dataset_by_default(monkeypatch, tmp_path):
+    """The default path end to end, on a subset of the shipped file found via TERRADYN_DATASETS
+    (4 speeds of the flat leg, every 6th angle)."""
+    full = td.io.read(studies.find_sph_dataset())
+    keep = [i for i, (sh, w) in enumerate(zip(full["shape"].values, full["omega_rad_s"].values))
+            if sh == "flat" and round(w * 10) in (2, 5, 8, 11)]
+    sub = full.isel(case=keep, theta=slice(None, None, 6))
+    d = tmp_path / "data"
+    td.io.write(sub, d / "sph_legs_speeds.nc")
+    monkeypatch.setenv("TERRADYN_DATASETS", str(d))
+    msgs = []
+    s = studies.legs_study(tmp_path / "out", legs=("flat",), particles=300, progress=msgs.append)
+    assert s["data"] == {"requested": "default", "sph_dataset": str(d / "sph_legs_speeds.nc"),
+                         "fallback_to_rft": False, "message": ""}
+    leg = s["legs"]["flat"]
+    assert leg["source"] == "sph" and leg["data_label"] == "SPH data: sph_legs_speeds.nc"
+    assert leg["inputs"] == ["omega_rad_s"] and leg["n_conditions"] == 4 and not leg["fallback_to_rft"]
+    assert leg["conditions"]["omega_rad_s"] == pytest.approx([0.2, 0.5, 0.8, 1.1])
+    assert any("SPH data: sph_legs_speeds.nc" in m for m in msgs) and not any("WARNING" in m for m in msgs)
+    a = td.io.read(tmp_path / "out" / "flat_data.nc").attrs
+    assert a["dddas_source"] == "sph" and a["dddas_data_file"] == "sph_legs_speeds.nc" and a["model"] == "sph"
+
+
+def test_a_leg_missing_from_the_sph_dataset_falls_back_alone(monkeypatch, tmp_path):
+    full = td.io.read(studies.find_sph_dataset())
+    td.io.write(full.isel(case=full["shape"].values == "flat"), tmp_path / "sph_legs_speeds.nc")
+    monkeypatch.setenv("TERRADYN_DATASETS", str(tmp_path))
+    legs, info = studies.resolve_legs_data(legs=("flat", "c"))
+    assert legs["flat"]["source"] == "sph" and legs["flat"]["file"] == str(tmp_path / "sph_legs_speeds.nc")
+    assert legs["c"]["source"] == "rft-standin" and legs["c"]["fallback"] and "no c leg" in legs["c"]["label"]
+    assert info["fallback_to_rft"] and "has no 'c' leg" in info["message"]
+    with pytest.raises(InputError, match="no 'c' leg"):
+        studies.resolve_legs_data("sph", legs=("c",))

@@ -169,9 +169,10 @@ def dddas_foot_study(out, **kwargs) -> dict:
 
 
 def dddas_legs_study(out, **kwargs) -> dict:
-    """DDDAS on the three legs: surrogate, cross-validation and assimilation. On the RFT
-    stand-in (hip height varies; RFT is rate-independent) until SPH datasets are given.
-    Writes to ``out/dddas_legs``."""
+    """DDDAS on the three legs: surrogate, cross-validation and assimilation. On the shipped
+    SPH training set ``datasets/sph_legs_speeds.nc`` (ten speeds per leg); where it cannot be
+    found, on RFT-generated data (hip height varies; RFT is rate-independent), which every
+    output then says (:func:`terradyn.dddas.studies.legs_study`). Writes to ``out/dddas_legs``."""
     from .dddas import studies as ds
 
     return ds.legs_study(Path(out) / "dddas_legs", **kwargs)

@@ -169,11 +169,23 @@ def register(app: typer.Typer) -> None:
                              title=f"{method.value} posterior after {n} samples")
         _err(f"assimilated {n} samples ({method.value})")
 
+    def _legs_summary(s):
+        """A short human-readable summary on stderr: the data each leg used and its errors."""
+        from rich.markup import escape
+
+        if s["data"].get("fallback_to_rft"):
+            _err(escape(f"WARNING: {s['data']['message']}"))
+        for leg, r in s["legs"].items():
+            cv, pf = r["cv_mse_mean_N2"], r["assimilation"]["mse_pf_N2"]
+            _err(escape(f"{leg}: {r['data_label']}; {r['n_conditions']} conditions of {', '.join(r['inputs'])}; "
+                 f"ranks {r['ranks']}; LOO CV mean MSE Fx/Fz {cv['Fx']:.3f}/{cv['Fz']:.3f} N^2 "
+                 f"(thesis {r['reported_cv_mse_N2']:g}); PF posterior MSE Fx/Fz {pf['Fx']:.3f}/{pf['Fz']:.3f} N^2"))
+
     @dd.command()
     def study(
         which: Study = typer.Argument(..., help="legs: three legs across ten conditions; foot: human-sized foot."),
         out: Path = typer.Option(Path("results/dddas"), "--out", "-o", help="Output folder."),
-        data: List[str] = typer.Option([], "--data", help="legs: LEG=FILE stacked dataset (e.g. SPH at ten speeds), or FILE stacking all legs with a 'shape' coordinate (datasets/sph_legs_speeds.nc); default RFT stand-in."),
+        data: List[str] = typer.Option([], "--data", help="legs: FILE stacking all legs with a 'shape' coordinate, LEG=FILE (a stack for one leg), or a keyword: 'sph' (the shipped SPH training set datasets/sph_legs_speeds.nc), 'rft' (RFT-generated stand-in, hip height varies); also LEG=sph|rft. Default: the shipped SPH set, or RFT-generated data with a warning where it is not found (set TERRADYN_DATASETS=DIR)."),
         trial: Optional[Path] = typer.Option(None, help="foot: trial CSV [default: a synthetic trial]."),
         particles: int = typer.Option(5000, help="Number of particles."),
         seed: int = typer.Option(0, help="Random seed."),
@@ -188,6 +200,7 @@ def register(app: typer.Typer) -> None:
                 k, v = item.split("=", 1) if "=" in item else ("all", item)
                 d[k] = v
             s = studies.legs_study(out, d, particles=particles, seed=seed, progress=_err)
+            _legs_summary(s)
         else:
             s = studies.foot_study(out, trial=trial, particles=particles, seed=seed, progress=_err)
         sys.stdout.write(json.dumps(s, indent=2, default=float) + "\n")

@@ -2,18 +2,25 @@
 human-sized foot. Each writes datasets (NetCDF), tables (CSV), figures (PNG), a model file
 per surrogate and a ``summary.json`` to an output folder, and returns the summary dict.
 
-Physics caveat (legs study): RFT is quasi-static, so RFT forces at different angular speeds
-are identical and a speed-conditioned surrogate trained on RFT would be degenerate. Without
-SPH data the legs study therefore runs on an **RFT stand-in** whose condition is the hip
-height (which RFT resolves), not omega, and says so in every output. Given stacked datasets
-(e.g. SPH at omega = 0.2..1.1 rad/s, a ``case`` dimension with an ``omega`` coordinate) it
-runs on those exactly as the thesis did.
+Data of the legs study: by default the shipped SPH training set ``datasets/sph_legs_speeds.nc``
+(30 SPH runs: flat, C and reverse-C legs at omega = 0.2..1.1 rad/s), as in the thesis. It is
+found next to the package in a source checkout, or in ``$TERRADYN_DATASETS``
+(:func:`find_sph_dataset`). Where it cannot be found (e.g. an installed wheel without the
+repository's ``datasets/`` folder) the study falls back to RFT-generated data and says so in
+its messages, its saved metadata and its figures. ``data="rft"`` asks for RFT data explicitly.
+
+Physics caveat (RFT data): RFT is quasi-static, so RFT forces at different angular speeds are
+identical and a speed-conditioned surrogate trained on RFT would be degenerate. RFT data are
+therefore an **RFT stand-in** whose condition is the hip height (which RFT resolves), not omega,
+and every output says so.
 """
 from __future__ import annotations
 
 import json
 import math
+import os
 import time
+import warnings
 from pathlib import Path
 from typing import Callable
 
@@ -37,9 +44,156 @@ STANDIN_NOTE = ("RFT stand-in: RFT is quasi-static, so angular speed does not ch
                 "one-to-one with the thesis's SPH speed study.")
 
 
+#: The shipped SPH training set of the legs study (``datasets/README.md``).
+SPH_DATASET = "sph_legs_speeds.nc"
+#: Environment variable naming a folder that holds :data:`SPH_DATASET` (for installs without
+#: the repository's ``datasets/`` folder).
+DATASETS_ENV = "TERRADYN_DATASETS"
+#: What ``data`` may say instead of a file: the default (shipped SPH data, else RFT with a
+#: warning), the shipped SPH data (an error if missing), or RFT-generated data.
+DATA_KEYWORDS = ("default", "sph", "rft")
+RFT_LABEL = "RFT-generated stand-in"
+
+
 def _say(progress, msg):
     if progress:
         progress(msg)
+
+
+def dataset_dirs() -> list[Path]:
+    """Folders searched for the shipped datasets, in order: ``$TERRADYN_DATASETS``, the
+    package's ``data/`` folder, and ``datasets/`` of the source checkout the package lives in
+    (the folder holding ``pyproject.toml`` and ``src/terradyn``)."""
+    dirs = []
+    env = os.environ.get(DATASETS_ENV, "").strip()
+    if env:
+        dirs.append(Path(env).expanduser())
+    pkg = Path(__file__).resolve().parent.parent  # .../terradyn
+    dirs.append(pkg / "data")
+    root = pkg.parent.parent  # src/terradyn -> the repository root in a source checkout
+    if pkg.parent.name == "src" and (root / "pyproject.toml").is_file():
+        dirs.append(root / "datasets")
+    return dirs
+
+
+def find_sph_dataset() -> Path | None:
+    """Path of the shipped SPH training set :data:`SPH_DATASET`, or None if not found in
+    :func:`dataset_dirs`."""
+    for d in dataset_dirs():
+        p = d / SPH_DATASET
+        if p.is_file():
+            return p
+    return None
+
+
+def _keyword(v) -> str | None:
+    if isinstance(v, str) and v.strip().lower() in DATA_KEYWORDS:
+        return v.strip().lower()
+    return None
+
+
+def _rft_record(fallback_msg: str = "", why: str = "SPH dataset not found") -> dict:
+    note = f"{fallback_msg} {STANDIN_NOTE}".strip() if fallback_msg else STANDIN_NOTE
+    label = f"{RFT_LABEL}: {why}" if fallback_msg else RFT_LABEL
+    return {"data": None, "source": "rft-standin", "label": label, "file": None,
+            "fallback": bool(fallback_msg), "note": note}
+
+
+def _short(model: str) -> str:
+    return model.upper() if model.lower() in ("sph", "rft") else model
+
+
+def _span(ds, name) -> str:
+    v = np.asarray(ds[name].values, float)
+    return f"{name} {v.min():g}..{v.max():g}"
+
+
+def resolve_legs_data(data=None, legs=LEGS) -> tuple[dict, dict]:
+    """Which data each leg of :func:`legs_study` uses, without running anything.
+
+    ``data``: None or ``"default"`` (the shipped SPH set :data:`SPH_DATASET` if
+    :func:`find_sph_dataset` finds it, else RFT-generated data, with a fallback message),
+    ``"sph"`` (the shipped SPH set; an error if missing), ``"rft"`` (RFT-generated stand-in),
+    a file or Dataset stacking all legs with a ``shape`` coordinate, or a mapping leg ->
+    file / Dataset / keyword (key ``"all"`` for a file or keyword covering all legs); legs the
+    mapping leaves out get the default.
+
+    Returns ``(per_leg, info)``: per leg a dict with ``data`` (a Dataset, or None for the RFT
+    stand-in generated by the study), ``source`` (``"sph"``, the data's ``model`` attribute,
+    or ``"rft-standin"``), ``label`` (for titles), ``file``, ``fallback`` and ``note``; ``info``
+    says what was asked, where the SPH set was found and whether the study fell back to RFT."""
+    if not isinstance(data, dict):
+        data = {} if data is None else {"all": data}
+    data = dict(data)
+    if not data:
+        requested = "default"
+    elif list(data) == ["all"]:
+        requested = _keyword(data["all"]) or "file"
+    else:
+        requested = "per-leg"
+    base = "default"
+    if "all" in data and _keyword(data["all"]):
+        base = _keyword(data.pop("all"))
+    kw = {k: _keyword(v) for k, v in data.items() if _keyword(v)}
+    files = {k: v for k, v in data.items() if k not in kw}
+    unknown = [k for k in kw if k not in LEGS]
+    if unknown:
+        raise InputError("data", f"unknown leg(s) {unknown}; allowed: {', '.join(LEGS)}")
+    all_file = files.get("all")
+    given = split_by_leg(files)
+    unknown = [k for k in given if k not in LEGS]
+    if unknown:
+        raise InputError("data", f"unknown leg(s) {unknown}; allowed: {', '.join(LEGS)}")
+    wanted = {leg: kw.get(leg, base) for leg in legs if leg not in given}
+    info = {"requested": requested, "sph_dataset": None,
+            "fallback_to_rft": False, "message": ""}
+    out = {}
+    for leg in legs:
+        if leg not in given:
+            continue
+        v = given[leg]
+        f = v if isinstance(v, (str, Path)) else (all_file if isinstance(all_file, (str, Path)) else None)
+        ds = _load(v)
+        model = str(ds.attrs.get("model", "given"))
+        name = _short(model)
+        label = f"{name} data: {Path(f).name}" if f is not None else f"{name} data (given dataset)"
+        out[leg] = {"data": ds, "source": model, "label": label, "file": str(f) if f is not None else None,
+                    "fallback": False, "note": ds.attrs.get("dddas_note", f"{model} data given by the user"
+                                                        + (f" ({Path(f).name})" if f is not None else ""))}
+    sph = None
+    if any(m in ("default", "sph") for m in wanted.values()):
+        path = find_sph_dataset()
+        info["sph_dataset"] = str(path) if path else None
+        if path is None:
+            where = ", ".join(str(d) for d in dataset_dirs())
+            msg = (f"SPH training dataset {SPH_DATASET} not found (looked in {where}; e.g. an installed "
+                   f"package without the repository's datasets/ folder): falling back to RFT-generated "
+                   f"data. Set {DATASETS_ENV}=DIR or pass data=FILE (--data FILE) to use the SPH data.")
+            if "sph" in wanted.values():
+                raise InputError("data", msg.split(": falling back")[0])
+            info.update(fallback_to_rft=True, message=msg)
+        else:
+            sph = split_by_leg(_load(path))
+    for leg, mode in wanted.items():
+        if mode == "rft":
+            out[leg] = _rft_record()
+        elif sph is None:
+            out[leg] = _rft_record(info["message"])
+        elif leg not in sph:
+            if mode == "sph":
+                raise InputError("data", f"{SPH_DATASET} has no '{leg}' leg (has {', '.join(sph)})")
+            msg = f"{SPH_DATASET} has no '{leg}' leg: falling back to RFT-generated data."
+            info.update(fallback_to_rft=True, message=(info["message"] + " " + msg).strip())
+            out[leg] = _rft_record(msg, f"no {leg} leg in the SPH dataset")
+        else:
+            ds = sph[leg]
+            speed = [n for n in ("omega", "omega_rad_s") if n in ds.coords]
+            span = f", {_span(ds, speed[0])} rad/s" if speed else ""
+            out[leg] = {"data": ds, "source": "sph", "label": f"SPH data: {SPH_DATASET}", "file": str(path),
+                        "fallback": False,
+                        "note": (f"SPH training data from the shipped {SPH_DATASET} ({ds.sizes['case']} runs of "
+                                 f"the {leg} leg{span}), as in the thesis's speed study.")}
+    return {leg: out[leg] for leg in legs}, info
 
 
 def rft_standin(shape: str, hip_heights_cm=None, n_theta: int = 271, medium: str = "3 mm glass CP") -> xr.Dataset:
@@ -120,15 +274,20 @@ def _mse(a: xr.Dataset, b: xr.Dataset, v: str) -> float:
     return float(np.mean((a[v].values - b[v].values) ** 2))
 
 
-def legs_study(out: str | Path, data: dict | None = None, legs=LEGS, noise: float = 0.05,
+def legs_study(out: str | Path, data=None, legs=LEGS, noise: float = 0.05,
                particles: int = 5000, seed: int = 0, energy: float = 0.95, test_case: int | None = None,
                n_theta: int = 271, obs_every: int = 1, jitter_floor: float = 0.01,
                progress: Callable[[str], None] | None = None) -> dict:
     """Surrogate, cross-validation and assimilation for the three legs.
 
-    ``data``: optional mapping leg shape -> stacked dataset (or file) with conditions along
-    ``case`` (SPH at ten speeds, coordinate ``omega``); legs without data use the RFT
-    stand-in (:func:`rft_standin`, hip height 1.0-3.25 cm). ``noise``: Gaussian observation
+    ``data`` (see :func:`resolve_legs_data`): None (default) for the shipped SPH training set
+    :data:`SPH_DATASET` (ten speeds per leg, coordinate ``omega_rad_s``), falling back to the
+    RFT stand-in (:func:`rft_standin`, hip height 1.0-3.25 cm, ``n_theta`` angles) with a
+    warning where it cannot be found; ``"sph"`` or ``"rft"`` to insist on one; a file or
+    Dataset stacking all legs with a ``shape`` coordinate; or a mapping leg -> file / Dataset
+    / keyword. Each output names its data (summary ``data`` and per leg ``source``,
+    ``data_label``, ``data_file``, ``note``; attrs ``dddas_source``, ``dddas_data``,
+    ``dddas_note`` of the NetCDF files; figure titles). ``noise``: Gaussian observation
     noise std as a fraction of the test case's RMS force per component; ``test_case``: index of
     the held-out case to assimilate (default: the middle one); ``obs_every``: assimilate every
     k-th sample; ``jitter_floor``: the particle filter's process noise (fraction of the prior
@@ -138,26 +297,33 @@ def legs_study(out: str | Path, data: dict | None = None, legs=LEGS, noise: floa
     out.mkdir(parents=True, exist_ok=True)
     noise = positive("noise", noise)
     obs_every = integer("obs-every", obs_every, 1)
-    data = split_by_leg(data)
-    unknown = [k for k in data if k not in LEGS]
-    if unknown:
-        raise InputError("data", f"unknown leg(s) {unknown}; allowed: {', '.join(LEGS)}")
+    resolved, info = resolve_legs_data(data, legs)
+    if info["fallback_to_rft"]:
+        _say(progress, f"WARNING: {info['message']}")
+        if not progress:
+            warnings.warn(info["message"], UserWarning, stacklevel=2)
     rng = np.random.default_rng(seed)
-    summary = {"study": "dddas-legs", "legs": {}, "reported_cv_mse_N2": REPORTED_CV_MSE,
+    summary = {"study": "dddas-legs", "data": info, "legs": {}, "reported_cv_mse_N2": REPORTED_CV_MSE,
                "noise_fraction": noise, "particles": particles, "seed": seed, "jitter_floor": jitter_floor}
     from .. import io
 
+    def tag(d: xr.Dataset) -> xr.Dataset:
+        d.attrs.update(dddas_source=source, dddas_data=label, dddas_note=note)
+        if rec["file"]:
+            d.attrs["dddas_data_file"] = Path(rec["file"]).name
+        return d
+
     for shape in legs:
         t0 = time.perf_counter()
-        if shape in data:
-            ds = _load(data[shape])
-            source = ds.attrs.get("model", "given")
-            note = ds.attrs.get("dddas_note", f"{source} data given by the user")
+        rec = resolved[shape]
+        source, label, note = rec["source"], rec["label"], rec["note"]
+        if rec["data"] is not None:
+            ds = rec["data"].copy()
+            _say(progress, f"{shape}: {label}" + (f" ({rec['file']})" if rec["file"] else ""))
         else:
-            _say(progress, f"{shape}: RFT stand-in data (hip height varies; see note)")
+            _say(progress, f"{shape}: {label} (hip height varies, not omega; see note)")
             ds = rft_standin(shape, n_theta=n_theta)
-            source, note = "rft-standin", STANDIN_NOTE
-        ds.attrs["dddas_note"] = note
+        tag(ds)
         names = condition_names(ds)
         # speed first: 'omega' (hand-made stacks) or 'omega_rad_s' (sweep collect)
         speed = [n for n in ("omega", "omega_rad_s") if n in names]
@@ -169,14 +335,15 @@ def legs_study(out: str | Path, data: dict | None = None, legs=LEGS, noise: floa
         sur = est.fit(ds)
         sur.save(out / f"{shape}_model.nc")
         plots.explained_variance(sur, out / f"{shape}_explained_variance.png",
-                                 f"{shape} leg: HOSVD explained variance ({source})")
+                                 f"{shape} leg: HOSVD explained variance ({label})")
         _say(progress, f"{shape}: cross-validation over {ds.sizes['case']} conditions")
         cv = cross_validate(ds, Surrogate(inputs=inputs, energy=energy, random_state=seed))
         io_cv = cv.copy()
         io_cv.attrs["note"] = note
+        tag(io_cv)
         io_cv.to_netcdf(out / f"{shape}_cv.nc", engine="h5netcdf")
         mse_table(cv).to_csv(out / f"{shape}_cv.csv", index=False)
-        plots.cv_errors(cv, out / f"{shape}_cv.png", f"{shape} leg: leave-one-out CV ({source})",
+        plots.cv_errors(cv, out / f"{shape}_cv.png", f"{shape} leg: leave-one-out CV ({label})",
                         REPORTED_CV_MSE.get(shape))
         # Assimilation on the held-out test case.
         n = ds.sizes["case"]
@@ -198,17 +365,18 @@ def legs_study(out: str | Path, data: dict | None = None, legs=LEGS, noise: floa
         _say(progress, f"{shape}: assimilating {len(sel)} noisy samples of case {k} ({cond})")
         prior, post_pf, post_ex, ess, t_pf, n_res = _assimilation_run(sur_k, cond, obs, obs_std, particles, seed,
                                                                       jitter_floor=jitter_floor)
-        io.write(post_pf, out / f"{shape}_posterior_pf.nc")
-        io.write(post_ex, out / f"{shape}_posterior_exact.nc")
-        obs.to_netcdf(out / f"{shape}_observations.nc", engine="h5netcdf")
+        io.write(tag(post_pf), out / f"{shape}_posterior_pf.nc")
+        io.write(tag(post_ex), out / f"{shape}_posterior_exact.nc")
+        tag(obs).to_netcdf(out / f"{shape}_observations.nc", engine="h5netcdf")
         plots.prediction(post_pf, out / f"{shape}_assimilation.png", truth=truth, observations=obs, prior=prior,
-                         truth_label="held-out case (truth)",
-                         title=f"{shape} leg, held-out {cond}: particle filter posterior ({source})")
+                         truth_label=f"held-out case (truth, {'RFT' if rec['data'] is None else _short(source)})",
+                         title=f"{shape} leg, held-out {cond}: particle filter posterior ({label})")
         plots.ess_trace(ess, obs[coord].values, out / f"{shape}_ess.png", particles, plots._xlabel(coord),
-                        f"{shape} leg: particle filter ESS")
+                        f"{shape} leg: particle filter ESS ({label})")
         cvm = {c: float(cv["mse"].sel(component=c).mean()) for c in cv["component"].values}
         summary["legs"][shape] = {
-            "source": source, "note": note, "inputs": inputs, "n_conditions": int(n),
+            "source": source, "data_label": label, "data_file": rec["file"], "fallback_to_rft": rec["fallback"],
+            "note": note, "inputs": inputs, "n_conditions": int(n),
             "conditions": {nm: ds[nm].values.tolist() for nm in inputs},
             "ranks": list(map(int, sur.ranks_)),
             "cv_mse_mean_N2": cvm,
