@@ -75,30 +75,39 @@ def test_cell_list_finds_exactly_the_brute_force_neighbours():
         assert found == brute
 
 
-def test_pass_two_reuses_pass_one_neighbours_and_falls_back_when_the_list_overflows():
-    """Pass 1 records each granular particle's neighbours (inside the support, on its side of
-    the leg) and pass 2 reuses them; a particle with more neighbours than the list holds is
-    searched again. Both give the same motion and leg force, and the recorded counts are the
-    brute-force counts."""
+def test_verlet_lists_match_a_fresh_cell_search_every_step_and_fall_back_on_overflow():
+    """Pass 1 takes its candidates from a Verlet list (radius 2h + skin, rebuilt once a
+    particle has moved half the skin) and hands the neighbours it finds to pass 2. Against a
+    rebuild at every step (a plain cell search) and against lists too short for anyone
+    (every particle searched in the cells in both passes) the motion and the leg force are
+    the same, and the neighbour counts are the brute-force ones."""
     leg = td.flat_leg()
-    traj = td.Rotation(omega=2.0, hip_height=0.02, theta_start=-65 * DEG, theta_end=-55 * DEG,
+    traj = td.Rotation(omega=4.0, hip_height=0.02, theta_start=-65 * DEG, theta_end=-45 * DEG,
                        n_theta=5).trajectory()
     cfg = SPHConfig(dx=5e-3, settle_time=0.0)
-    runs = []
-    for maxn in (None, 3):  # 3: every list overflows, pass 2 searches the cells
+    runs = {}
+    for mode in ("verlet", "every step", "overflow"):
         s = solver.Solver(scenes.leg_scene(leg, traj, 0, bed_width=0.16, bed_depth=0.04,
                                            config=cfg))
-        if maxn:
-            s._backend.nb = tuple(np.zeros((s.n, maxn), a.dtype) if a.ndim == 2 else a
-                                  for a in s._backend.nb)
-        f = [s.step() for _ in range(40)]
-        runs.append((s, np.array([x for x in f if x is not None])))
-    (a, fa), (b, fb) = runs
-    assert np.all(b._backend.nb[2][b._srtk[0] == K.SOIL] == -1)
-    assert np.allclose(a.x, b.x, rtol=0, atol=1e-12) and np.allclose(a.vz, b.vz, atol=1e-9)
-    assert np.abs(fa[:, 1]).max() > 0 and np.allclose(fa, fb, rtol=1e-9, atol=1e-12)
-    # counts against brute force for granular particles with no leg particle in reach
-    nbn = a._backend.nb[2]
+        be = s._backend
+        if mode == "overflow":  # lists 3 wide: every particle overflows
+            be.nb = tuple(np.zeros((s.n, 3), a.dtype) if a.ndim == 2 else a for a in be.nb)
+        f = []
+        for _ in range(300):
+            if mode == "every step":
+                be.xb[:] = np.inf
+            f.append(s.step())
+        runs[mode] = (s, np.array(f))
+    (a, fa), (b, fb), (c, fc) = runs["verlet"], runs["every step"], runs["overflow"]
+    assert 1 < a._backend.builds < 100 and b._backend.builds == 300
+    assert np.abs(fa[:, 1]).max() > 0.1  # the leg is in the bed
+    for s, f in ((b, fb), (c, fc)):
+        assert np.allclose(a.x, s.x, rtol=0, atol=1e-10) and np.allclose(a.vz, s.vz, atol=1e-7)
+        assert np.allclose(fa, f, rtol=1e-7, atol=1e-9)
+    vn, nbn = c._backend.nb[1], c._backend.nb[4]
+    assert np.all(vn[c._srtk[0] == K.SOIL] == -1) and np.all(nbn[c._srtk[0] == K.SOIL] == -1)
+    # pass 2's counts against brute force for granular particles with no leg particle in reach
+    nbn = a._backend.nb[4]
     X, Z, KND = a._srt[0], a._srt[1], a._srtk[0]
     checked = 0
     for k in np.flatnonzero(KND == K.SOIL)[::7]:

@@ -175,7 +175,7 @@ _PTX = textwrap.dedent(r'''
     i32 = lambda m: np.zeros(m, np.int32)
     nb = G.K.neighbour_list(n, 1.3)
     grid = (1.0, 1.0, 1.0, 1.0, 3, 4)
-    par_s = grid + (1.0,) * 7
+    par_s = grid + (1.0,) * 8 + (True,)
     par_a = G.K.SOURCES["_accel_par"](*(1.0,) * 4, True, *(1.0,) * 13, 3, 4, 1.0, 1.0, 1.0)
     args = {
         "_k_count": (S, 1.0, 1.0, 1.0, 3, 4, i32(nc), i32(n), i32(n)),
@@ -189,8 +189,10 @@ _PTX = textwrap.dedent(r'''
         "_k_gather": (i32(n), S, kind, srt, srtk),
         "_k_regather": (i32(n), S, kind, srt),
         "_k_strain": (srt, srtk, i32(n), i32(nc + 1), S, *nb, par_s),
-        "_k_accel": (srt, srtk, i32(n), i32(nc + 1), S, fleg, bad, *nb, par_a, acc),
+        "_k_accel": (srt, srtk, i32(n), i32(nc + 1), S, fleg, bad, *nb[2:], par_a, acc),
         "_k_drop": (S, kind, fleg, 1.0, 1.0, 1.0, i32(1)),
+        "_k_disp": (S, np.zeros(n), np.zeros(n), np.zeros(1), acc),
+        "_k_mark": (S, np.zeros(n), np.zeros(n)),
     }
     for name, a in args.items():
         ptx, _ = cuda.compile_ptx(getattr(G, name).py_func, tuple(typeof(x) for x in a),
@@ -211,7 +213,7 @@ def test_gpu_kernels_compile_for_hopper():
     p = subprocess.run([sys.executable, "-c", _PTX], env=env, capture_output=True, text=True,
                        timeout=600)
     assert p.returncode == 0, p.stderr[-3000:]
-    assert p.stdout.count(" ok") == 13
+    assert p.stdout.count(" ok") == 15
 
 
 # ------------------------------------------------------------------------ in-process, no GPU

@@ -266,11 +266,36 @@ def _k_regather(cell_index, S, kind, srt):
 
 
 @cuda.jit
-def _k_strain(srt, srtk, cell_index, cell_start, S, nbj, nbw, nbn, par):
+def _k_strain(srt, srtk, cell_index, cell_start, S, vj, vn, nbj, nbw, nbn, par):
     for k in range(cuda.grid(1), cell_index.shape[0], cuda.gridsize(1)):
         _strain_stress_one(k, srt[0], srt[1], srt[2], srt[3], srt[7], srt[8], srt[9], srt[10],
                            srtk[0], srtk[1], cell_index, cell_start, S[RHO], S[SXX], S[SZZ],
-                           S[SXZ], S[SYY], nbj, nbw, nbn, par)
+                           S[SXZ], S[SYY], vj, vn, nbj, nbw, nbn, par)
+
+
+@cuda.jit
+def _k_disp(S, xb, zb, dmax, acc):
+    """dmax[0] = max over particles of the squared distance from the last list build (see
+    :func:`terradyn.sph.kernels.max_displacement2`); dmax[0] must be 0 before. Also zeroes
+    ``acc`` (the step's sums; the binning, which did that, no longer runs every step)."""
+    t = cuda.grid(1)
+    if t < acc.shape[0]:
+        acc[t] = 0.0
+    for i in range(cuda.grid(1), xb.shape[0], cuda.gridsize(1)):
+        dx = S[X, i] - xb[i]
+        dz = S[Z, i] - zb[i]
+        d2 = dx * dx + dz * dz
+        if not d2 < 1e300:
+            d2 = 1e300
+        cuda.atomic.max(dmax, 0, d2)
+
+
+@cuda.jit
+def _k_mark(S, xb, zb):
+    """Remember the positions of a list build."""
+    for i in range(cuda.grid(1), xb.shape[0], cuda.gridsize(1)):
+        xb[i] = S[X, i]
+        zb[i] = S[Z, i]
 
 
 @cuda.jit
@@ -336,6 +361,10 @@ class GPUBackend:
         self.srt = cuda.device_array((11, n), np.float64)
         self.srtk = cuda.device_array((3, n), np.float64)
         self.nb = tuple(cuda.to_device(a) for a in K.neighbour_list(n, s.scene.config.hdx))
+        self.xb = cuda.to_device(np.full(n, np.inf))  # positions at the last list build
+        self.zb = cuda.to_device(np.full(n, np.inf))
+        self.dmax = cuda.device_array(1, np.float64)
+        self.builds = 0
         self.bins = DeviceBins(n, s.ncx, s.ncz)
         self.acc = cuda.device_array(4, np.float64)
         self.cnt = cuda.device_array(1, np.int32)
@@ -409,16 +438,24 @@ class GPUBackend:
         ncx, ncz = int(s.ncx), int(s.ncz)
         n = self.n
         b = self.bins
-        b.run(self.S, xmin, zmin, inv_cell, ncx, ncz, self.acc)
+        nb = _blocks(n)
+        # Verlet list: rebuilt (and the cells re-binned) as on the CPU backend
+        self.dmax.copy_to_device(np.zeros(1))
+        _k_disp[nb, TPB](self.S, self.xb, self.zb, self.dmax, self.acc)
+        build = bool(self.dmax.copy_to_host()[0] > (0.5 * K.SKIN * h) ** 2)
+        if build:
+            b.run(self.S, xmin, zmin, inv_cell, ncx, ncz, self.acc)
+            _k_mark[nb, TPB](self.S, self.xb, self.zb)
+            self.builds += 1
         grid = (h, xmin, zmin, inv_cell, ncx, ncz)
         grav = (gx, gz)
         noslip = bool(cfg.noslip)
         self._boundaries(grav, grid, noslip)
-        nb = _blocks(n)
         _k_gather[nb, TPB](b.cell_index, self.S, self.kind, self.srt, self.srtk)
         par = (h, xmin, zmin, inv_cell, ncx, ncz, dt, float(mat.shear_modulus),
                float(mat.bulk_modulus), float(mat.alpha_phi), float(mat.k_c),
-               float(0.9 * mat.density), float(1.1 * mat.density))
+               float(0.9 * mat.density), float(1.1 * mat.density),
+               float((2.0 + K.SKIN) * h), build)
         _k_strain[nb, TPB](self.srt, self.srtk, b.cell_index, b.cell_start, self.S, *self.nb,
                            par)
         self._boundaries(grav, grid, noslip)
@@ -431,7 +468,7 @@ class GPUBackend:
             float(0.1 * cfg.dx), xmin, zmin, inv_cell, ncx, ncz, dt, float(damping),
             float(s.vmax_allowed))
         _k_accel[nb, TPB](self.srt, self.srtk, b.cell_index, b.cell_start, self.S, self.fleg,
-                          self.bad, *self.nb, par, self.acc)
+                          self.bad, *self.nb[2:], par, self.acc)
         a = self.acc.copy_to_host()
         return int(a[3]), (float(a[0]), float(a[1]), float(a[2]))
 

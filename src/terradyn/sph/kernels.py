@@ -261,18 +261,55 @@ def _regather_one(k, cell_index, vx, vz, gvx, gvz, rho, mass, kind, sxx, szz, sx
 
 
 @_source
+def _strain_pair(j, xi, zi, vxi, vzi, X, Z, VX, VZ, VOL, RHO, NOX, NOZ, KND, DCL, sup2, inv_h,
+                 dwc, acc):
+    """Column ``j`` as a neighbour of :func:`_strain_stress_one`'s particle: returns (fdw,
+    running sums (d rho, Lxx, Lxz, Lzx, Lzz)); fdw = 0 (and no contribution) outside the
+    support or on the other side of the leg, else the kernel-gradient factor
+    (grad W = fdw r_ij)."""
+    dr, gxx, gxz, gzx, gzz = acc
+    rx = xi - X[j]
+    rz = zi - Z[j]
+    r2 = rx * rx + rz * rz
+    if r2 >= sup2:
+        return 0.0, acc
+    if KND[j] == LEG and (rx * NOX[j] + rz * NOZ[j] + DCL[j]) <= 0.0:
+        return 0.0, acc  # material on the other side of the thin leg
+    t = 1.0 - 0.5 * math.sqrt(r2) * inv_h
+    fdw = dwc * t * t * t
+    gwx = fdw * rx
+    gwz = fdw * rz
+    vxij = vxi - VX[j]
+    vzij = vzi - VZ[j]
+    volj = VOL[j]
+    dr += volj * RHO[j] * (vxij * gwx + vzij * gwz)
+    gxx -= volj * vxij * gwx
+    gxz -= volj * vxij * gwz
+    gzx -= volj * vzij * gwx
+    gzz -= volj * vzij * gwz
+    return fdw, (dr, gxx, gxz, gzx, gzz)
+
+
+@_source
 def _strain_stress_one(k, X, Z, VX, VZ, VOL, RHO, NOX, NOZ, KND, DCL, cell_index, cell_start,
-                       rho, sxx, szz, sxz, syy, nbj, nbw, nbn, par):
+                       rho, sxx, szz, sxz, syy, vj, vn, nbj, nbw, nbn, par):
     """Column ``k`` (cell order) of :func:`strain_stress`: the velocity gradient and new
-    density and stress of its particle if granular, and its neighbour list for pass 2 (nbj:
-their columns, nbw: kernel-gradient factors, nbn: count, -1 past nbj's width; separate
-arguments, not a tuple: see :func:`_accel_kick_one`). X ... DCL: rows of the gathered copy; par
-    = (h, xmin, zmin, inv_cell, ncx, ncz, dt, shear_mod, bulk_mod, alpha_phi, k_c, rho_min,
-    rho_max)."""
+    density and stress of its particle if granular.
+
+    Candidates come from a Verlet list (vj: columns of every particle within the list radius
+    ``rlist`` = 2h + skin when it was built, vn: their count, -1 when they did not fit in
+    vj's width). With ``build`` true the list is made here from the cells; it stays valid
+    while no particle has moved more than skin / 2 since (the solver checks that and keeps
+    the cell order of the build until then). The neighbours found (inside the support, on
+    this side of the leg) go to pass 2's list: nbj (columns), nbw (kernel-gradient factors),
+    nbn (count; -1 if the Verlet list overflowed: pass 2 searches the cells too). The arrays
+    are separate arguments, not a tuple: see :func:`_accel_kick_one`. X ... DCL: rows of the gathered copy; par = (h, xmin, zmin,
+    inv_cell, ncx, ncz, dt, shear_mod, bulk_mod, alpha_phi, k_c, rho_min, rho_max, rlist,
+    build)."""
     if KND[k] != SOIL:
         return
     (h, xmin, zmin, inv_cell, ncx, ncz, dt, shear_mod, bulk_mod, alpha_phi, k_c, rho_min,
-     rho_max) = par
+     rho_max, rlist, build) = par
     h2 = h * h
     sup2 = 4.0 * h2
     dwc = -5.0 * _W2D / (h2 * h2)
@@ -284,44 +321,49 @@ arguments, not a tuple: see :func:`_accel_kick_one`). X ... DCL: rows of the gat
     vzi = VZ[k]
     cx = min(max(int((xi - xmin) * inv_cell), 0), ncx - 1)
     cz = min(max(int((zi - zmin) * inv_cell), 0), ncz - 1)
-    dr = 0.0
-    gxx = 0.0
-    gxz = 0.0
-    gzx = 0.0
-    gzz = 0.0
-    cnt = 0
-    maxn = nbj.shape[1]
-    for dz in range(-REACH, REACH + 1):
-        iz = cz + dz
-        if iz < 0 or iz >= ncz:
-            continue
-        c0x = max(cx - REACH, 0)
-        c1x = min(cx + REACH, ncx - 1)
-        for j in range(cell_start[iz * ncx + c0x], cell_start[iz * ncx + c1x + 1]):
-            rx = xi - X[j]
-            rz = zi - Z[j]
-            r2 = rx * rx + rz * rz
-            if r2 >= sup2:
+    maxn = vj.shape[1]
+    if build:
+        rl2 = rlist * rlist
+        cnt = 0
+        for dz in range(-REACH, REACH + 1):
+            iz = cz + dz
+            if iz < 0 or iz >= ncz:
                 continue
-            if KND[j] == LEG and (rx * NOX[j] + rz * NOZ[j] + DCL[j]) <= 0.0:
+            c0x = max(cx - REACH, 0)
+            c1x = min(cx + REACH, ncx - 1)
+            for j in range(cell_start[iz * ncx + c0x], cell_start[iz * ncx + c1x + 1]):
+                rx = xi - X[j]
+                rz = zi - Z[j]
+                if rx * rx + rz * rz < rl2:
+                    if cnt < maxn:
+                        vj[k, cnt] = j
+                    cnt += 1
+        vn[k] = cnt if cnt <= maxn else -1
+    acc = (0.0, 0.0, 0.0, 0.0, 0.0)
+    cnt = vn[k]
+    nbn[k] = -1
+    if cnt >= 0:
+        m = 0
+        for n in range(cnt):
+            j = vj[k, n]
+            fdw, acc = _strain_pair(j, xi, zi, vxi, vzi, X, Z, VX, VZ, VOL, RHO, NOX, NOZ, KND,
+                                    DCL, sup2, inv_h, dwc, acc)
+            if fdw != 0.0:
+                nbj[k, m] = j
+                nbw[k, m] = fdw
+                m += 1
+        nbn[k] = m
+    else:
+        for dz in range(-REACH, REACH + 1):
+            iz = cz + dz
+            if iz < 0 or iz >= ncz:
                 continue
-            t = 1.0 - 0.5 * math.sqrt(r2) * inv_h
-            fdw = dwc * t * t * t
-            if cnt < maxn:
-                nbj[k, cnt] = j
-                nbw[k, cnt] = fdw
-            cnt += 1
-            gwx = fdw * rx
-            gwz = fdw * rz
-            vxij = vxi - VX[j]
-            vzij = vzi - VZ[j]
-            volj = VOL[j]
-            dr += volj * RHO[j] * (vxij * gwx + vzij * gwz)
-            gxx -= volj * vxij * gwx
-            gxz -= volj * vxij * gwz
-            gzx -= volj * vzij * gwx
-            gzz -= volj * vzij * gwz
-    nbn[k] = cnt if cnt <= maxn else -1
+            c0x = max(cx - REACH, 0)
+            c1x = min(cx + REACH, ncx - 1)
+            for j in range(cell_start[iz * ncx + c0x], cell_start[iz * ncx + c1x + 1]):
+                fdw, acc = _strain_pair(j, xi, zi, vxi, vzi, X, Z, VX, VZ, VOL, RHO, NOX, NOZ,
+                                        KND, DCL, sup2, inv_h, dwc, acc)
+    dr, gxx, gxz, gzx, gzz = acc
     rho[i], sxx[i], szz[i], sxz[i], syy[i] = dp_update(
         rho[i], dr, gxx, gxz, gzx, gzz, sxx[i], szz[i], sxz[i], syy[i], dt, shear_mod,
         bulk_mod, alpha_phi, k_c, rho_min, rho_max)
@@ -416,9 +458,8 @@ since; a negative count: list overflowed, search the cells again); par: the scal
     cnt = nbn[k]
     if cnt >= 0:
         for n in range(cnt):
-            j = nbj[k, n]
-            acc = _accel_pair(j, nbw[k, n], X, Z, VX, VZ, PXX, PZZ, PXZ, VOL, RHO, NOX, NOZ, KND,
-                              DCL, GRD, pp, acc)
+            acc = _accel_pair(nbj[k, n], nbw[k, n], X, Z, VX, VZ, PXX, PZZ, PXZ, VOL, RHO, NOX,
+                              NOZ, KND, DCL, GRD, pp, acc)
     else:
         for dz in range(-REACH, REACH + 1):
             iz = cz + dz
@@ -501,18 +542,40 @@ def _place_one(kk, c, s, x, z, vx, vz, acc_x, acc_z, nox, noz, lidx, bx, bz, bnx
     noz[w] = -s * bnx[kk] + c * bnz[kk]
 
 
+#: Verlet-list skin as a fraction of h: lists hold the particles within 2h + SKIN h and are
+#: rebuilt when a particle has moved SKIN h / 2 (cells grow to (2 + SKIN) h / REACH).
+SKIN = 0.2
+
+
 def neighbour_list(n: int, hdx: float, xp=np):
-    """Arrays of the neighbour list that pass 1 records and pass 2 reuses (positions do not
-    move between them): column ids (n, maxn) int32, kernel-gradient factors (n, maxn) and
-    counts (n,) int32 (-1: more than maxn neighbours, pass 2 searches the cells again).
-    maxn: 1.5 x the neighbours of a square lattice at h = hdx dx (pi (2 hdx)^2), room for
-    strong compression."""
-    maxn = int(math.ceil(1.5 * math.pi * (2.0 * hdx) ** 2)) + 8
-    return (xp.zeros((n, maxn), np.int32), xp.zeros((n, maxn), np.float64),
+    """Arrays of the neighbour lists: the Verlet list that pass 1 builds and uses (columns
+    (n, maxn) int32, counts (n,) int32, -1: more than maxn candidates, both passes search the
+    cells) and pass 2's list of the neighbours pass 1 found (columns, kernel-gradient factors
+    (n, maxn), counts). maxn: 1.5 x the particles of a square lattice within the list radius
+    (pi ((2 + SKIN) hdx)^2), room for strong compression."""
+    maxn = int(math.ceil(1.5 * math.pi * ((2.0 + SKIN) * hdx) ** 2)) + 8
+    return (xp.zeros((n, maxn), np.int32), xp.zeros(n, np.int32),
+            xp.zeros((n, maxn), np.int32), xp.zeros((n, maxn), np.float64),
             xp.zeros(n, np.int32))
 
 
 # ------------------------------------------------------------------ CPU kernels (prange)
+@numba.njit(parallel=True, fastmath=_FM, cache=True)
+def max_displacement2(x, z, xb, zb):
+    """Largest squared distance of a particle from where it was at the last list build
+    (non-finite positions count as infinitely far)."""
+    m = 0.0
+    for i in prange(x.shape[0]):
+        dx = x[i] - xb[i]
+        dz = z[i] - zb[i]
+        d2 = dx * dx + dz * dz
+        if not d2 < 1e300:
+            d2 = 1e300
+        m = max(m, d2)
+    return m
+
+
+
 @numba.njit(cache=True)
 def bin_particles(x, z, xmin, zmin, inv_cell, ncx, ncz, cell_start, cell_index):
     """Counting sort of particles into square cells (side = kernel support).
@@ -576,11 +639,13 @@ def regather(cell_index, vx, vz, gvx, gvz, rho, mass, kind, sxx, szz, sxz, out_f
 @numba.njit(parallel=True, fastmath=True, cache=True)
 def strain_stress(srt, srtk, cell_index, h, xmin, zmin, inv_cell, ncx, ncz, cell_start,
                   rho, sxx, szz, sxz, syy, dt, shear_mod, bulk_mod, alpha_phi, k_c, rho_min,
-                  rho_max, nbj, nbw, nbn):
+                  rho_max, vj, vn, nbj, nbw, nbn, rlist, build):
     """First pass (velocities only): d rho/dt and the velocity gradient L of every granular
     particle (lxx = dvx/dx, lxz = dvx/dz, ...), then its new density and stress
     (:func:`dp_update`). Reads only the cell-ordered copies made by :func:`gather`, so it can
-    write the new state by particle id in the same pass."""
+    write the new state by particle id in the same pass. vj, vn: the Verlet list, rebuilt
+    from the cells if ``build`` with radius ``rlist``; nbj, nbw, nbn: pass 2's neighbour list
+    (:func:`neighbour_list`)."""
     X = srt[0]
     Z = srt[1]
     VX = srt[2]
@@ -592,10 +657,10 @@ def strain_stress(srt, srtk, cell_index, h, xmin, zmin, inv_cell, ncx, ncz, cell
     KND = srtk[0]
     DCL = srtk[1]
     par = (h, xmin, zmin, inv_cell, ncx, ncz, dt, shear_mod, bulk_mod, alpha_phi, k_c, rho_min,
-           rho_max)
+           rho_max, rlist, build)
     for k in prange(cell_index.shape[0]):
         _strain_stress_one(k, X, Z, VX, VZ, VOL, RHO, NOX, NOZ, KND, DCL, cell_index, cell_start,
-                           rho, sxx, szz, sxz, syy, nbj, nbw, nbn, par)
+                           rho, sxx, szz, sxz, syy, vj, vn, nbj, nbw, nbn, par)
 
 
 @numba.njit(parallel=True, fastmath=_FM, cache=True)  # _FM: the NaN checks must stay

@@ -278,7 +278,7 @@ class Solver:
         return float(np.max(np.hypot(tr.hip_vx, tr.hip_vz) + np.abs(tr.angular_velocity) * r))
 
     def _grid(self):
-        cell = 2.0 * self.h / K.REACH
+        cell = (2.0 + K.SKIN) * self.h / K.REACH  # cells reach the Verlet-list radius
         xs = [self.x.min(), self.x.max()]
         zs = [self.z.min(), self.z.max()]
         leg = self.scene.leg
@@ -404,6 +404,9 @@ class CPUBackend:
     def __init__(self, solver: Solver):
         self.s = solver
         self.nb = K.neighbour_list(solver.n, solver.scene.config.hdx)
+        self.xb = np.full(solver.n, np.inf)  # positions at the last list build: none yet
+        self.zb = np.full(solver.n, np.inf)
+        self.builds = 0
 
     def place(self, pose) -> None:
         s = self.s
@@ -420,15 +423,23 @@ class CPUBackend:
         gx, gz = s.scene.gravity
         hip_x, hip_z, hip_vx, hip_vz = pose[:4] if pose is not None else (0.0,) * 4
         omega = pose[7] if pose is not None else 0.0
-        K.bin_particles(s.x, s.z, s.xmin, s.zmin, s.inv_cell, s.ncx, s.ncz, s.cell_start,
-                        s.cell_index)
+        # Verlet list: rebuild (and re-bin) once a particle (granular, wall or leg; also a
+        # state loaded from a checkpoint) has moved half the skin since the last build
+        rlist = (2.0 + K.SKIN) * s.h
+        build = K.max_displacement2(s.x, s.z, self.xb, self.zb) > (0.5 * K.SKIN * s.h) ** 2
+        if build:
+            K.bin_particles(s.x, s.z, s.xmin, s.zmin, s.inv_cell, s.ncx, s.ncz, s.cell_start,
+                            s.cell_index)
+            self.xb[:] = s.x
+            self.zb[:] = s.z
+            self.builds += 1
         grid = (s.xmin, s.zmin, s.inv_cell, s.ncx, s.ncz, s.cell_start, s.cell_index)
         self._boundaries(gx, gz)
         K.gather(s.cell_index, s.x, s.z, s.vx, s.vz, s.gvx, s.gvz, s.rho, s.mass, s.kind, s.nox,
                  s.noz, s.dcl, s.guard, s.sxx, s.szz, s.sxz, s._srt, s._srtk)
         K.strain_stress(s._srt, s._srtk, s.cell_index, s.h, *grid[:6], s.rho, s.sxx, s.szz,
                         s.sxz, s.syy, s.dt, mat.shear_modulus, mat.bulk_modulus, mat.alpha_phi,
-                        mat.k_c, 0.9 * mat.density, 1.1 * mat.density, *self.nb)
+                        mat.k_c, 0.9 * mat.density, 1.1 * mat.density, *self.nb, rlist, build)
         self._boundaries(gx, gz)
         K.regather(s.cell_index, s.vx, s.vz, s.gvx, s.gvz, s.rho, s.mass, s.kind, s.sxx, s.szz,
                    s.sxz, s._srt)
@@ -436,7 +447,7 @@ class CPUBackend:
             s._srt, s._srtk, s.cell_index, s.mass, s.h, s.c0, cfg.av_alpha, cfg.av_beta,
             cfg.av_boundary, gx, gz, hip_x, hip_z, hip_vx, hip_vz, omega, s.half_t, s.gap,
             0.1 * cfg.dx, *grid[:6], s.x, s.z, s.vx, s.vz, s.rho, s.sxx, s.szz, s.dt, damping,
-            s.vmax_allowed, s.fleg, s.bad, *self.nb)
+            s.vmax_allowed, s.fleg, s.bad, *self.nb[2:])
         if nbad or s.scene.leg is None:
             return nbad, None
         f = s.fleg.sum(axis=0)  # rows of non-granular particles stay 0
