@@ -310,6 +310,33 @@ def test_checkpoint_resume_reproduces_the_uninterrupted_run(tmp_path):
     assert fresh.steps == full.steps and np.allclose(fresh.Fz, full.Fz) and not ck.exists()
 
 
+def test_import_bounds_the_openmp_spin_unless_the_user_chose():
+    """GNU OpenMP's default spin made a step 7x slower with two busy processes on the cores
+    (benchmarks/bench_threading.py); ``import terradyn`` sets a short spin, a user's own
+    setting wins, and the kernels run on OpenMP (not the slower work-queue layer)."""
+    import subprocess
+    import sys
+
+    code = ("import os, terradyn, numba; from terradyn.sph import kernels as K; import numpy as np;"
+            "K.max_displacement2(np.zeros(4), np.zeros(4), np.ones(4), np.ones(4));"
+            "print(os.environ.get('GOMP_SPINCOUNT'), numba.threading_layer())")
+    base = {k: v for k, v in __import__("os").environ.items()
+            if k not in ("GOMP_SPINCOUNT", "OMP_WAIT_POLICY", "NUMBA_THREADING_LAYER")}
+    out = {}
+    for name, extra in (("default", {}), ("user", {"GOMP_SPINCOUNT": "5"}),
+                        ("policy", {"OMP_WAIT_POLICY": "passive"})):
+        p = subprocess.run([sys.executable, "-c", code], env=base | extra, capture_output=True,
+                           text=True, check=True)
+        out[name] = p.stdout.split()
+    assert out["default"][0] == "10000"
+    assert out["user"][0] == "5" and out["policy"][0] == "None"
+    try:  # Numba's OpenMP layer needs the system's libgomp
+        import numba.np.ufunc.omppool  # noqa: F401
+    except ImportError:
+        return
+    assert out["default"][1] in ("omp", "tbb")  # not the work-queue layer
+
+
 def test_config_rejects_bad_input():
     with pytest.raises(InputError, match="dx"):
         SPHConfig(dx=-1)
