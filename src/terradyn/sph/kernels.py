@@ -140,6 +140,19 @@ def dp_update(rho, drho, lxx, lxz, lzx, lzz, sxx, szz, sxz, syy, dt, shear_mod, 
 
 
 @_source
+def _row_span(cx, cz, dz, ncx, ncz, cell_start):
+    """Cell-ordered positions [lo, hi) of the particles in row cz + dz of the cells, columns
+    cx - REACH .. cx + REACH (the cells of a row are contiguous in cell order); empty past
+    the grid's edge."""
+    iz = cz + dz
+    if iz < 0 or iz >= ncz:
+        return 0, 0
+    c0x = max(cx - REACH, 0)
+    c1x = min(cx + REACH, ncx - 1)
+    return cell_start[iz * ncx + c0x], cell_start[iz * ncx + c1x + 1]
+
+
+@_source
 def _boundary_one(kk, x, z, vx, vz, rho, kind, nox, noz, dcl, sxx, szz, sxz, syy, gvx, gvz,
                   bidx, acc_x, acc_z, grav, grid, cell_start, cell_index, noslip):
     """Boundary particle ``bidx[kk]``: stress and ghost velocity (see :func:`boundary_state`).
@@ -165,34 +178,27 @@ def _boundary_one(kk, x, z, vx, vz, rho, kind, nox, noz, dcl, sxx, szz, sxz, syy
     ex = gx - acc_x[w]
     ez = gz - acc_z[w]
     for dz in range(-REACH, REACH + 1):
-        iz = cz + dz
-        if iz < 0 or iz >= ncz:
-            continue
-        for dxc in range(-REACH, REACH + 1):
-            ix = cx + dxc
-            if ix < 0 or ix >= ncx:
+        lo, hi = _row_span(cx, cz, dz, ncx, ncz, cell_start)
+        for p in range(lo, hi):
+            f = cell_index[p]
+            if kind[f] != SOIL:
                 continue
-            c = iz * ncx + ix
-            for p in range(cell_start[c], cell_start[c + 1]):
-                f = cell_index[p]
-                if kind[f] != SOIL:
-                    continue
-                rx = xw - x[f]
-                rz = zw - z[f]
-                if isleg and (-rx * nox[w] - rz * noz[w] + dcl[w]) <= 0.0:
-                    continue
-                r = math.sqrt(rx * rx + rz * rz)
-                wgt = wendland_w(r, h)
-                if wgt == 0.0:
-                    continue
-                ssum += wgt
-                axx += sxx[f] * wgt
-                azz += szz[f] * wgt
-                axz += sxz[f] * wgt
-                ayy += syy[f] * wgt
-                avx += vx[f] * wgt
-                avz += vz[f] * wgt
-                hyd += rho[f] * (ex * rx + ez * rz) * wgt
+            rx = xw - x[f]
+            rz = zw - z[f]
+            if isleg and (-rx * nox[w] - rz * noz[w] + dcl[w]) <= 0.0:
+                continue
+            r = math.sqrt(rx * rx + rz * rz)
+            wgt = wendland_w(r, h)
+            if wgt == 0.0:
+                continue
+            ssum += wgt
+            axx += sxx[f] * wgt
+            azz += szz[f] * wgt
+            axz += sxz[f] * wgt
+            ayy += syy[f] * wgt
+            avx += vx[f] * wgt
+            avz += vz[f] * wgt
+            hyd += rho[f] * (ex * rx + ez * rz) * wgt
     if ssum > 0.0:
         inv = 1.0 / ssum
         # p_w = <p> + rho (g - a_w).(x_w - x_f) (Adami 2012); sigma = -p I, tension
@@ -326,12 +332,8 @@ def _strain_stress_one(k, X, Z, VX, VZ, VOL, RHO, NOX, NOZ, KND, DCL, cell_index
         rl2 = rlist * rlist
         cnt = 0
         for dz in range(-REACH, REACH + 1):
-            iz = cz + dz
-            if iz < 0 or iz >= ncz:
-                continue
-            c0x = max(cx - REACH, 0)
-            c1x = min(cx + REACH, ncx - 1)
-            for j in range(cell_start[iz * ncx + c0x], cell_start[iz * ncx + c1x + 1]):
+            lo, hi = _row_span(cx, cz, dz, ncx, ncz, cell_start)
+            for j in range(lo, hi):
                 rx = xi - X[j]
                 rz = zi - Z[j]
                 if rx * rx + rz * rz < rl2:
@@ -355,12 +357,8 @@ def _strain_stress_one(k, X, Z, VX, VZ, VOL, RHO, NOX, NOZ, KND, DCL, cell_index
         nbn[k] = m
     else:
         for dz in range(-REACH, REACH + 1):
-            iz = cz + dz
-            if iz < 0 or iz >= ncz:
-                continue
-            c0x = max(cx - REACH, 0)
-            c1x = min(cx + REACH, ncx - 1)
-            for j in range(cell_start[iz * ncx + c0x], cell_start[iz * ncx + c1x + 1]):
+            lo, hi = _row_span(cx, cz, dz, ncx, ncz, cell_start)
+            for j in range(lo, hi):
                 fdw, acc = _strain_pair(j, xi, zi, vxi, vzi, X, Z, VX, VZ, VOL, RHO, NOX, NOZ,
                                         KND, DCL, sup2, inv_h, dwc, acc)
     dr, gxx, gxz, gzx, gzz = acc
@@ -462,12 +460,8 @@ since; a negative count: list overflowed, search the cells again); par: the scal
                               NOZ, KND, DCL, GRD, pp, acc)
     else:
         for dz in range(-REACH, REACH + 1):
-            iz = cz + dz
-            if iz < 0 or iz >= ncz:
-                continue
-            c0x = max(cx - REACH, 0)
-            c1x = min(cx + REACH, ncx - 1)
-            for j in range(cell_start[iz * ncx + c0x], cell_start[iz * ncx + c1x + 1]):
+            lo, hi = _row_span(cx, cz, dz, ncx, ncz, cell_start)
+            for j in range(lo, hi):
                 rx = xi - X[j]
                 rz = zi - Z[j]
                 r2 = rx * rx + rz * rz
