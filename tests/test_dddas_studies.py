@@ -176,3 +176,10 @@ def test_a_leg_missing_from_the_sph_dataset_falls_back_alone(monkeypatch, tmp_pa
     assert info["fallback_to_rft"] and "has no 'c' leg" in info["message"]
     with pytest.raises(InputError, match="no 'c' leg"):
         studies.resolve_legs_data("sph", legs=("c",))
+
+
+def test_figure_titles_name_the_condition_with_units():
+    from terradyn.dddas.studies import _cond_text
+
+    assert _cond_text({"omega_rad_s": 0.7}) == "omega = 0.7 rad/s"
+    assert _cond_text({"hip_height_cm": 2.5, "length_cm": 29.0}) == "hip height = 2.5 cm, length = 29 cm"

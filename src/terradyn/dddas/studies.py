@@ -270,6 +270,20 @@ def _assimilation_run(sur: Surrogate, cond: dict, obs: xr.Dataset, obs_std: dict
     return prior, pf.prediction(), ex.prediction(), ess, t_pf, pf.post.n_resamples
 
 
+_LEG_TITLE = {"flat": "Flat", "c": "C", "reverse-c": "Reverse-C"}
+
+
+def _cond_text(cond: dict) -> str:
+    """An operating condition for a figure title: omega_rad_s=0.7 -> 'omega = 0.7 rad/s'."""
+    units = {"_rad_s": "rad/s", "_cm": "cm", "_deg": "deg", "_m": "m"}
+    parts = []
+    for k, v in cond.items():
+        suffix = next((u for u in units if k.endswith(u)), "")
+        name = k[:len(k) - len(suffix)].replace("_", " ")
+        parts.append(f"{name} = {v:g} {units.get(suffix, '')}".rstrip())
+    return ", ".join(parts)
+
+
 def _mse(a: xr.Dataset, b: xr.Dataset, v: str) -> float:
     return float(np.mean((a[v].values - b[v].values) ** 2))
 
@@ -370,7 +384,8 @@ def legs_study(out: str | Path, data=None, legs=LEGS, noise: float = 0.05,
         tag(obs).to_netcdf(out / f"{shape}_observations.nc", engine="h5netcdf")
         plots.prediction(post_pf, out / f"{shape}_assimilation.png", truth=truth, observations=obs, prior=prior,
                          truth_label=f"held-out case (truth, {'RFT' if rec['data'] is None else _short(source)})",
-                         title=f"{shape} leg, held-out {cond}: particle filter posterior ({label})")
+                         title=f"{_LEG_TITLE.get(shape, shape)} leg, held out: {_cond_text(cond)}; "
+                               f"particle filter posterior ({label})")
         plots.ess_trace(ess, obs[coord].values, out / f"{shape}_ess.png", particles, plots._xlabel(coord),
                         f"{shape} leg: particle filter ESS ({label})")
         cvm = {c: float(cv["mse"].sel(component=c).mean()) for c in cv["component"].values}
