@@ -404,6 +404,9 @@ class CPUBackend:
     def __init__(self, solver: Solver):
         self.s = solver
         self.nb = K.neighbour_list(solver.n, solver.scene.config.hdx)
+        # every boundary particle (walls, then leg) in one kernel call: a call with ~30
+        # arguments costs tens of microseconds in Numba's dispatcher alone
+        self.bidx = np.concatenate([solver.widx, solver.lidx]).astype(np.int64)
         self.xb = np.full(solver.n, np.inf)  # positions at the last list build: none yet
         self.zb = np.full(solver.n, np.inf)
         self.builds = 0
@@ -450,17 +453,15 @@ class CPUBackend:
             s.vmax_allowed, s.fleg, s.bad, *self.nb[2:])
         if nbad or s.scene.leg is None:
             return nbad, None
-        f = s.fleg.sum(axis=0)  # rows of non-granular particles stay 0
-        return nbad, (float(f[0]), float(f[1]), float(f[2]))
+        return nbad, K.column_sums3(s.fleg)  # rows of non-granular particles stay 0
 
     def _boundaries(self, gx, gz):
         s = self.s
         grid = (s.xmin, s.zmin, s.inv_cell, s.ncx, s.ncz, s.cell_start, s.cell_index)
-        for idx in (s.widx, s.lidx):
-            if len(idx):
-                K.boundary_state(s.x, s.z, s.vx, s.vz, s.rho, s.mass, s.kind, s.nox, s.noz, s.dcl,
-                                 s.sxx, s.szz, s.sxz, s.syy, s.gvx, s.gvz, idx, s.acc_x, s.acc_z,
-                                 gx, gz, s.h, *grid, s.scene.config.noslip)
+        if len(self.bidx):
+            K.boundary_state(s.x, s.z, s.vx, s.vz, s.rho, s.mass, s.kind, s.nox, s.noz, s.dcl,
+                             s.sxx, s.szz, s.sxz, s.syy, s.gvx, s.gvz, self.bidx, s.acc_x,
+                             s.acc_z, gx, gz, s.h, *grid, s.scene.config.noslip)
 
     def drop_lost(self, box) -> int:
         s = self.s
