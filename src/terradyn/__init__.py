@@ -12,11 +12,11 @@ import os as _os
 
 # Numba's parallel kernels (SPH, RFT batches) run on its OpenMP layer (its default when TBB is
 # absent). GNU OpenMP's threads spin for ~300k iterations after each parallel region: on a
-# busy machine they burn the cores other work needs (an SPH step went 15x slower with two
-# other busy processes on two cores), while Numba's work-queue layer costs 75 us per kernel
-# launch (half of a small bed's step). A short spin keeps the OpenMP launch at ~5 us idle and
-# ~10 us loaded (benchmarks/bench_threading.py). Set before any OpenMP runtime starts; a
-# user's own GOMP_SPINCOUNT or OMP_WAIT_POLICY wins.
+# busy machine they burn the cores other work needs (with two other busy processes on two
+# cores an SPH step went 11-15x slower than with a short spin), while Numba's work-queue
+# layer costs ~75 us per kernel launch (half of a small bed's step). A short spin keeps the
+# OpenMP launch at ~5 us idle and ~10 us loaded (benchmarks/bench_threading.py). Set before
+# any OpenMP runtime starts; a user's own GOMP_SPINCOUNT or OMP_WAIT_POLICY wins.
 if "GOMP_SPINCOUNT" not in _os.environ and "OMP_WAIT_POLICY" not in _os.environ:
     _os.environ["GOMP_SPINCOUNT"] = "10000"
 
