@@ -84,10 +84,17 @@ def wendland_w(r, h):
 
 
 @_source
+def _cell_xz(xi, zi, xmin, zmin, inv_cell, ncx, ncz):
+    """Column and row of the cell of a point; points outside the grid are clamped into the
+    edge cells."""
+    return (min(max(int((xi - xmin) * inv_cell), 0), ncx - 1),
+            min(max(int((zi - zmin) * inv_cell), 0), ncz - 1))
+
+
+@_source
 def _cell_of(xi, zi, xmin, zmin, inv_cell, ncx, ncz):
-    """Cell id of a point; points outside the grid are clamped into the edge cells."""
-    cx = min(max(int((xi - xmin) * inv_cell), 0), ncx - 1)
-    cz = min(max(int((zi - zmin) * inv_cell), 0), ncz - 1)
+    """Cell id of a point (see :func:`_cell_xz`)."""
+    cx, cz = _cell_xz(xi, zi, xmin, zmin, inv_cell, ncx, ncz)
     return cz * ncx + cx
 
 
@@ -164,8 +171,7 @@ def _boundary_one(kk, x, z, vx, vz, rho, kind, nox, noz, dcl, sxx, szz, sxz, syy
     w = bidx[kk]
     xw = x[w]
     zw = z[w]
-    cx = min(max(int((xw - xmin) * inv_cell), 0), ncx - 1)
-    cz = min(max(int((zw - zmin) * inv_cell), 0), ncz - 1)
+    cx, cz = _cell_xz(xw, zw, xmin, zmin, inv_cell, ncx, ncz)
     ssum = 0.0
     axx = 0.0
     azz = 0.0
@@ -325,8 +331,7 @@ def _strain_stress_one(k, X, Z, VX, VZ, VOL, RHO, NOX, NOZ, KND, DCL, cell_index
     zi = Z[k]
     vxi = VX[k]
     vzi = VZ[k]
-    cx = min(max(int((xi - xmin) * inv_cell), 0), ncx - 1)
-    cz = min(max(int((zi - zmin) * inv_cell), 0), ncz - 1)
+    cx, cz = _cell_xz(xi, zi, xmin, zmin, inv_cell, ncx, ncz)
     maxn = vj.shape[1]
     if build:
         rl2 = rlist * rlist
@@ -442,8 +447,7 @@ since; a negative count: list overflowed, search the cells again); par: the scal
     pxx = PXX[k]
     pzz = PZZ[k]
     pxz = PXZ[k]
-    cx = min(max(int((xi - xmin) * inv_cell), 0), ncx - 1)
-    cz = min(max(int((zi - zmin) * inv_cell), 0), ncz - 1)
+    cx, cz = _cell_xz(xi, zi, xmin, zmin, inv_cell, ncx, ncz)
     a_x = 0.0
     a_z = 0.0
     fx = 0.0
