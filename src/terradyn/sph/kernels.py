@@ -42,9 +42,10 @@ from numba import prange
 
 SOIL, WALL, LEG, LOST = 0, 1, 2, 3
 _W2D = 7.0 / (4.0 * math.pi)
-#: Cells per kernel support: cell side = 2h / REACH, a particle's neighbours lie in the
-#: (2 REACH + 1)^2 cells around its own. With REACH = 2 the cells scanned cover 2.0 x the
-#: support's area instead of 2.9 x with REACH = 1 (measured faster: benchmarks/bench_sph.py).
+#: Cells per list radius: cell side = (2 + SKIN) h / REACH, a particle's list candidates
+#: lie in the (2 REACH + 1)^2 cells around its own. With REACH = 2 the cells scanned cover
+#: about 2 x the disc's area instead of 2.9 x with REACH = 1 (measured faster:
+#: benchmarks/bench_sph.py).
 REACH = 2
 _FM = {"nsz", "arcp", "contract", "afn", "reassoc"}  # fastmath that keeps NaN/inf checks
 
