@@ -90,6 +90,24 @@ def _k_count(S, xmin, zmin, inv_cell, ncx, ncz, counts, cell_of, rank):
         rank[i] = cuda.atomic.add(counts, c, 1)
 
 
+@cuda.jit(device=True)
+def _block_scan(tmp, j, t):
+    """Inclusive Hillis-Steele scan of the block's SCAN_TPB values tmp[j - t .. j - t +
+    SCAN_TPB) (thread t holds tmp[j]); every thread of the block must call it. Returns
+    thread t's inclusive sum."""
+    cuda.syncthreads()
+    off = 1
+    while off < SCAN_TPB:
+        a = 0
+        if t >= off:
+            a = tmp[j - off]
+        cuda.syncthreads()
+        tmp[j] += a
+        cuda.syncthreads()
+        off *= 2
+    return tmp[j]
+
+
 @cuda.jit
 def _k_scan_blocks(counts, incl, bsum, tmp, chunk):
     """Inclusive scan of counts into ``incl``, per block of SCAN_TPB x ``chunk`` counts: each
@@ -110,17 +128,7 @@ def _k_scan_blocks(counts, incl, bsum, tmp, chunk):
         counts[c] = 0
         incl[c] = s
     tmp[j] = s
-    cuda.syncthreads()
-    off = 1
-    while off < SCAN_TPB:
-        a = 0
-        if t >= off:
-            a = tmp[j - off]
-        cuda.syncthreads()
-        tmp[j] += a
-        cuda.syncthreads()
-        off *= 2
-    pre = tmp[j] - s
+    pre = _block_scan(tmp, j, t) - s
     for c in range(lo, hi):
         incl[c] += pre
     if t == SCAN_TPB - 1:
@@ -142,17 +150,7 @@ def _k_scan_sums(bsum, nb, tmp, acc):
     for b in range(lo, hi):
         s += bsum[b]
     tmp[t] = s
-    cuda.syncthreads()
-    off = 1
-    while off < SCAN_TPB:
-        a = 0
-        if t >= off:
-            a = tmp[t - off]
-        cuda.syncthreads()
-        tmp[t] += a
-        cuda.syncthreads()
-        off *= 2
-    run = tmp[t] - s
+    run = _block_scan(tmp, t, t) - s
     for b in range(lo, hi):
         v = bsum[b]
         bsum[b] = run

@@ -546,16 +546,16 @@ def _place_one(kk, c, s, x, z, vx, vz, acc_x, acc_z, nox, noz, lidx, bx, bz, bnx
 SKIN = 0.2
 
 
-def neighbour_list(n: int, hdx: float, xp=np):
+def neighbour_list(n: int, hdx: float):
     """Arrays of the neighbour lists: the Verlet list that pass 1 builds and uses (columns
     (n, maxn) int32, counts (n,) int32, -1: more than maxn candidates, both passes search the
     cells) and pass 2's list of the neighbours pass 1 found (columns, kernel-gradient factors
     (n, maxn), counts). maxn: 1.5 x the particles of a square lattice within the list radius
     (pi ((2 + SKIN) hdx)^2), room for strong compression."""
     maxn = int(math.ceil(1.5 * math.pi * ((2.0 + SKIN) * hdx) ** 2)) + 8
-    return (xp.zeros((n, maxn), np.int32), xp.zeros(n, np.int32),
-            xp.zeros((n, maxn), np.int32), xp.zeros((n, maxn), np.float64),
-            xp.zeros(n, np.int32))
+    return (np.zeros((n, maxn), np.int32), np.zeros(n, np.int32),
+            np.zeros((n, maxn), np.int32), np.zeros((n, maxn), np.float64),
+            np.zeros(n, np.int32))
 
 
 # ------------------------------------------------------------------ CPU kernels (prange)
