@@ -25,12 +25,16 @@ Physics (2D plane strain, per unit depth; tension-positive stress, z up):
 Particle kinds: 0 granular, 1 fixed wall, 2 leg (moving rigid body), 3 lost (left the
 container; parked far away and ignored).
 
-One source for CPU and GPU: the work of one particle is a plain Python function of (index,
-arrays..., scalars) that allocates nothing (``_boundary_one``, ``_gather_one``,
-``_strain_stress_one``, ``_accel_kick_one``, ...; registered in :data:`SOURCES`). Here each
-is compiled as an inlined ``numba.njit`` function and called from the ``prange`` loops of the
-CPU kernels; :mod:`terradyn.sph.gpu` compiles the very same functions as CUDA device
-functions called from one-thread-per-particle kernels.
+One source for CPU and GPU: the physics of one particle or one pair is a plain Python
+function of (index, arrays..., scalars) that allocates nothing (``_boundary_one``,
+``_gather_one``, ``_pair_fdw``, ``_strain_pair``, ``_stress_term``, ``_accel_pair``,
+``dp_update``, ``_kick_one``, ...; registered in :data:`SOURCES`). Here each is compiled as an
+inlined ``numba.njit`` function and called from the ``prange`` loops of the CPU kernels;
+:mod:`terradyn.sph.gpu` compiles the very same functions as CUDA device functions called from
+one-thread-per-particle kernels. The loops around them differ where the hardware does: a GPU
+thread visits every neighbour of its particle (no write conflicts); the CPU visits each
+granular pair once and adds its terms to both particles (half the pair work; see the
+"each granular pair visited once" section below).
 """
 from __future__ import annotations
 
@@ -274,33 +278,47 @@ def _regather_one(k, cell_index, vx, vz, gvx, gvz, rho, mass, kind, sxx, szz, sx
 
 
 @_source
+def _pair_fdw(j, rx, rz, KND, NOX, NOZ, DCL, sup2, inv_h, dwc):
+    """Kernel-gradient factor of granular particle i and column j (grad_i W = fdw r_ij, r_ij
+    = (rx, rz) = x_i - x_j): 0 outside the support or when j is a leg particle on the other
+    side of the (thin) leg, else negative."""
+    r2 = rx * rx + rz * rz
+    if r2 >= sup2:
+        return 0.0
+    if KND[j] == LEG and (rx * NOX[j] + rz * NOZ[j] + DCL[j]) <= 0.0:
+        return 0.0  # material on the other side of the thin leg
+    t = 1.0 - 0.5 * math.sqrt(r2) * inv_h
+    return dwc * t * t * t
+
+
+@_source
+def _strain_terms(rx, rz, dvx, dvz, fdw):
+    """Pass 1 terms of a pair per unit volume of the other particle, seen from i (r_ij = (rx,
+    rz), v_i - v_j = (dvx, dvz), grad_i W_ij = fdw r_ij): (dv . grad W, and the four
+    components of dv (x) grad W). Particle i gets d rho += m_j (first) and L -= V_j (rest);
+    particle j the same with m_i, V_i (grad_j W_ji = -grad_i W_ij, v_j - v_i = -dv)."""
+    gwx = fdw * rx
+    gwz = fdw * rz
+    return (dvx * gwx + dvz * gwz, dvx * gwx, dvx * gwz, dvz * gwx, dvz * gwz)
+
+
+@_source
 def _strain_pair(j, xi, zi, vxi, vzi, X, Z, VX, VZ, VOL, RHO, NOX, NOZ, KND, DCL, sup2, inv_h,
                  dwc, acc):
     """Column ``j`` as a neighbour of :func:`_strain_stress_one`'s particle: returns (fdw,
     running sums (d rho, Lxx, Lxz, Lzx, Lzz)); fdw = 0 (and no contribution) outside the
     support or on the other side of the leg, else the kernel-gradient factor
     (grad W = fdw r_ij)."""
-    dr, gxx, gxz, gzx, gzz = acc
     rx = xi - X[j]
     rz = zi - Z[j]
-    r2 = rx * rx + rz * rz
-    if r2 >= sup2:
+    fdw = _pair_fdw(j, rx, rz, KND, NOX, NOZ, DCL, sup2, inv_h, dwc)
+    if fdw == 0.0:
         return 0.0, acc
-    if KND[j] == LEG and (rx * NOX[j] + rz * NOZ[j] + DCL[j]) <= 0.0:
-        return 0.0, acc  # material on the other side of the thin leg
-    t = 1.0 - 0.5 * math.sqrt(r2) * inv_h
-    fdw = dwc * t * t * t
-    gwx = fdw * rx
-    gwz = fdw * rz
-    vxij = vxi - VX[j]
-    vzij = vzi - VZ[j]
+    dvg, txx, txz, tzx, tzz = _strain_terms(rx, rz, vxi - VX[j], vzi - VZ[j], fdw)
+    dr, gxx, gxz, gzx, gzz = acc
     volj = VOL[j]
-    dr += volj * RHO[j] * (vxij * gwx + vzij * gwz)
-    gxx -= volj * vxij * gwx
-    gxz -= volj * vxij * gwz
-    gzx -= volj * vzij * gwx
-    gzz -= volj * vzij * gwz
-    return fdw, (dr, gxx, gxz, gzx, gzz)
+    return fdw, (dr + volj * RHO[j] * dvg, gxx - volj * txx, gxz - volj * txz,
+                 gzx - volj * tzx, gzz - volj * tzz)
 
 
 @_source
@@ -374,36 +392,46 @@ def _strain_stress_one(k, X, Z, VX, VZ, VOL, RHO, NOX, NOZ, KND, DCL, cell_index
 
 
 @_source
+def _stress_term(j, fdw, rx, rz, VX, VZ, PXX, PZZ, PXZ, RHO, KND, pp):
+    """The momentum equation's pair term per unit mass of ``j``: (sigma_i / rho_i^2 +
+    sigma_j / rho_j^2 - Pi_ij I) . grad_i W_ij (i: the particle of ``pp``, r_ij = (rx, rz),
+    grad_i W_ij = fdw r_ij); particle j feels minus it per unit mass of i. Returns (tx, tz)."""
+    (h, h2, c0, av_alpha, av_beta, av_boundary, half_t, hip_x, hip_z, xi, zi, vxi, vzi, rhoi,
+     pxx, pzz, pxz, mi) = pp
+    gwx = fdw * rx
+    gwz = fdw * rz
+    vdotr = (vxi - VX[j]) * rx + (vzi - VZ[j]) * rz
+    pi_ij = 0.0
+    if vdotr < 0.0 and (KND[j] == SOIL or av_boundary):
+        mu = h * vdotr / (rx * rx + rz * rz + 0.01 * h2)
+        pi_ij = (-av_alpha * c0 * mu + av_beta * mu * mu) / (0.5 * (rhoi + RHO[j]))
+    txx = pxx + PXX[j] - pi_ij
+    tzz = pzz + PZZ[j] - pi_ij
+    txz = pxz + PXZ[j]
+    return txx * gwx + txz * gwz, txz * gwx + tzz * gwz
+
+
+@_source
 def _accel_pair(j, fdw, X, Z, VX, VZ, PXX, PZZ, PXZ, VOL, RHO, NOX, NOZ, KND, DCL, GRD, pp,
                 acc):
     """One neighbour ``j`` (column of the gathered copy, inside the support, on the same side
     of the leg) of :func:`_accel_kick_one`'s particle; fdw: the kernel gradient factor
     (grad W = fdw r_ij). pp: that particle's scalars, acc: its running sums (a_x, a_z, fx, fz,
     torque, dmin, pnx, pnz); returns the updated sums."""
-    (h, h2, c0, av_alpha, av_beta, av_boundary, half_t, hip_x, hip_z, xi, zi, vxi, vzi, rhoi,
-     pxx, pzz, pxz, mi) = pp
+    half_t = pp[6]
+    hip_x = pp[7]
+    hip_z = pp[8]
+    mi = pp[17]
     a_x, a_z, fx, fz, tq, dmin, pnx, pnz = acc
-    rx = xi - X[j]
-    rz = zi - Z[j]
-    r2 = rx * rx + rz * rz
-    kj = KND[j]
-    gwx = fdw * rx
-    gwz = fdw * rz
-    vdotr = (vxi - VX[j]) * rx + (vzi - VZ[j]) * rz
-    rhoj = RHO[j]
-    mj = VOL[j] * rhoj
-    pi_ij = 0.0
-    if vdotr < 0.0 and (kj == SOIL or av_boundary):
-        mu = h * vdotr / (r2 + 0.01 * h2)
-        pi_ij = (-av_alpha * c0 * mu + av_beta * mu * mu) / (0.5 * (rhoi + rhoj))
-    txx = pxx + PXX[j] - pi_ij
-    tzz = pzz + PZZ[j] - pi_ij
-    txz = pxz + PXZ[j]
-    pax = mj * (txx * gwx + txz * gwz)
-    paz = mj * (txz * gwx + tzz * gwz)
+    rx = pp[9] - X[j]
+    rz = pp[10] - Z[j]
+    tx, tz = _stress_term(j, fdw, rx, rz, VX, VZ, PXX, PZZ, PXZ, RHO, KND, pp)
+    mj = VOL[j] * RHO[j]
+    pax = mj * tx
+    paz = mj * tz
     a_x += pax
     a_z += paz
-    if kj == LEG:
+    if KND[j] == LEG:
         if GRD[j] > 0.0:
             dn = rx * NOX[j] + rz * NOZ[j] + DCL[j] - half_t
             if dn < dmin:
@@ -418,68 +446,22 @@ def _accel_pair(j, fdw, X, Z, VX, VZ, PXX, PZZ, PXZ, VOL, RHO, NOX, NOZ, KND, DC
 
 
 @_source
-def _accel_kick_one(k, X, Z, VX, VZ, PXX, PZZ, PXZ, VOL, RHO, NOX, NOZ, KND, DCL, GRD,
-                    cell_index, cell_start, mass, x, z, vx, vz, rho, sxx, szz, fleg, bad, nb,
-                    par):
-    """Column ``k`` (cell order) of :func:`accelerations_kick`: acceleration, force on the
-    leg, contact guard, kick and drift of its particle if granular. Returns 1 if the particle
-    went non-finite or too fast, else 0 (also 0 for non-granular columns). X ... GRD: rows of
-    the gathered copy; nb = (nbj, nbw, nbn): the neighbour list of pass 1, read only (Numba
-0.68 loses writes to arrays passed in a tuple to a function inlined into a prange loop) (positions have not moved
-since; a negative count: list overflowed, search the cells again); par: the scalars (see
-:func:`_accel_par`)."""
-    if KND[k] != SOIL:
-        return 0
+def _accel_pp(k, X, Z, VX, VZ, PXX, PZZ, PXZ, RHO, mi, par):
+    """The scalars of column ``k`` that its pair terms read (``pp`` of :func:`_accel_pair`)."""
+    h = par[0]
+    return (h, h * h, par[6], par[7], par[8], par[9], par[17], par[12], par[13], X[k], Z[k],
+            VX[k], VZ[k], RHO[k], PXX[k], PZZ[k], PXZ[k], mi)
+
+
+@_source
+def _kick_one(i, xi, zi, vxi, vzi, acc, mass, x, z, vx, vz, rho, sxx, szz, fleg, bad, par):
+    """Kick, contact and drift of granular particle ``i`` (at xi, zi with velocity vxi, vzi
+    at the start of the step) from its summed pair terms acc = (a_x, a_z, fx, fz, torque,
+    dmin, pnx, pnz) (see :func:`_accel_pair`); writes its velocity, position and force on
+    the leg. Returns 1 if it went non-finite or too fast, else 0."""
     (h, xmin, zmin, inv_cell, ncx, ncz, c0, av_alpha, av_beta, av_boundary, gx, gz, hip_x,
      hip_z, hip_vx, hip_vz, omega, half_t, gap, max_push, dt, fdamp, vmax_allowed) = par
-    h2 = h * h
-    sup2 = 4.0 * h2
-    dwc = -5.0 * _W2D / (h2 * h2)
-    inv_h = 1.0 / h
-    i = cell_index[k]
-    xi = X[k]
-    zi = Z[k]
-    vxi = VX[k]
-    vzi = VZ[k]
-    rhoi = RHO[k]
-    dmin = gap
-    pnx = 0.0
-    pnz = 0.0
-    pxx = PXX[k]
-    pzz = PZZ[k]
-    pxz = PXZ[k]
-    cx, cz = _cell_xz(xi, zi, xmin, zmin, inv_cell, ncx, ncz)
-    a_x = 0.0
-    a_z = 0.0
-    fx = 0.0
-    fz = 0.0
-    tq = 0.0
-    acc = (a_x, a_z, fx, fz, tq, dmin, pnx, pnz)
-    pp = (h, h2, c0, av_alpha, av_beta, av_boundary, half_t, hip_x, hip_z, xi, zi, vxi, vzi,
-          rhoi, pxx, pzz, pxz, mass[i])
-    nbj, nbw, nbn = nb
-    cnt = nbn[k]
-    if cnt >= 0:
-        for n in range(cnt):
-            acc = _accel_pair(nbj[k, n], nbw[k, n], X, Z, VX, VZ, PXX, PZZ, PXZ, VOL, RHO, NOX,
-                              NOZ, KND, DCL, GRD, pp, acc)
-    else:
-        for dz in range(-REACH, REACH + 1):
-            lo, hi = _row_span(cx, cz, dz, ncx, ncz, cell_start)
-            for j in range(lo, hi):
-                rx = xi - X[j]
-                rz = zi - Z[j]
-                r2 = rx * rx + rz * rz
-                if r2 >= sup2:
-                    continue
-                if KND[j] == LEG and (rx * NOX[j] + rz * NOZ[j] + DCL[j]) <= 0.0:
-                    continue  # material on the other side of the thin leg
-                t = 1.0 - 0.5 * math.sqrt(r2) * inv_h
-                acc = _accel_pair(j, dwc * t * t * t, X, Z, VX, VZ, PXX, PZZ, PXZ, VOL, RHO, NOX,
-                                  NOZ, KND, DCL, GRD, pp, acc)
     a_x, a_z, fx, fz, tq, dmin, pnx, pnz = acc
-
-    # kick, contact, drift
     nvx = (vxi + dt * (a_x + gx)) * fdamp
     nvz = (vzi + dt * (a_z + gz)) * fdamp
     if pnx != 0.0 or pnz != 0.0:
@@ -509,6 +491,47 @@ since; a negative count: list overflowed, search the cells again); par: the scal
         return 0
     bad[i] = 1
     return 1
+
+
+@_source
+def _accel_kick_one(k, X, Z, VX, VZ, PXX, PZZ, PXZ, VOL, RHO, NOX, NOZ, KND, DCL, GRD,
+                    cell_index, cell_start, mass, x, z, vx, vz, rho, sxx, szz, fleg, bad, nb,
+                    par):
+    """Column ``k`` (cell order) of the GPU's pass 2: acceleration, force on the leg, contact
+    guard, kick and drift of its particle if granular, every neighbour visited from this
+    side (the CPU's pass 2, :func:`accelerations_kick`, visits each granular pair once).
+    Returns 1 if the particle went non-finite or too fast, else 0 (also 0 for non-granular
+    columns). X ... GRD: rows of the gathered copy; nb = (nbj, nbw, nbn): the neighbour list
+    of pass 1, read only (positions have not moved since; a negative count: the list
+    overflowed, search the cells again); par: the scalars (see :func:`_accel_par`)."""
+    if KND[k] != SOIL:
+        return 0
+    h = par[0]
+    sup2 = 4.0 * h * h
+    dwc = -5.0 * _W2D / (h * h * h * h)
+    inv_h = 1.0 / h
+    i = cell_index[k]
+    pp = _accel_pp(k, X, Z, VX, VZ, PXX, PZZ, PXZ, RHO, mass[i], par)
+    xi = X[k]
+    zi = Z[k]
+    acc = (0.0, 0.0, 0.0, 0.0, 0.0, par[18], 0.0, 0.0)
+    nbj, nbw, nbn = nb
+    cnt = nbn[k]
+    if cnt >= 0:
+        for n in range(cnt):
+            acc = _accel_pair(nbj[k, n], nbw[k, n], X, Z, VX, VZ, PXX, PZZ, PXZ, VOL, RHO, NOX,
+                              NOZ, KND, DCL, GRD, pp, acc)
+    else:
+        cx, cz = _cell_xz(xi, zi, par[1], par[2], par[3], par[4], par[5])
+        for dz in range(-REACH, REACH + 1):
+            lo, hi = _row_span(cx, cz, dz, par[4], par[5], cell_start)
+            for j in range(lo, hi):
+                fdw = _pair_fdw(j, xi - X[j], zi - Z[j], KND, NOX, NOZ, DCL, sup2, inv_h, dwc)
+                if fdw != 0.0:
+                    acc = _accel_pair(j, fdw, X, Z, VX, VZ, PXX, PZZ, PXZ, VOL, RHO, NOX, NOZ,
+                                      KND, DCL, GRD, pp, acc)
+    return _kick_one(i, xi, zi, VX[k], VZ[k], acc, mass, x, z, vx, vz, rho, sxx, szz, fleg,
+                     bad, par)
 
 
 @_source
@@ -556,6 +579,196 @@ def neighbour_list(n: int, hdx: float):
     return (np.zeros((n, maxn), np.int32), np.zeros(n, np.int32),
             np.zeros((n, maxn), np.int32), np.zeros((n, maxn), np.float64),
             np.zeros(n, np.int32))
+
+
+# ------------------------------------------------- CPU: each granular pair visited once
+# The CPU's two passes visit each granular-granular pair once, from its lower column, and add
+# the pair's terms to both particles (Newton's third law: half the pair work of visiting it
+# from both sides, as the GPU does, where scattered writes would need atomics). A granular
+# particle's pairs with wall and leg particles act on it alone and are visited from its side.
+# The writes to the other particle go to a shared buffer ``buf`` (N, 5), rows by column:
+# columns are split into chunks at least ``span`` long (the furthest any column's list
+# reaches ahead in cell order), so a chunk writes only into itself and the next one; the even
+# chunks run in parallel, then the odd ones. No atomics, no per-thread copies, and the sums
+# do not depend on the number of threads.
+
+@numba.njit(inline="always", fastmath=True)
+def _wanted(k, j, KND):
+    """Whether column ``j`` belongs in granular column ``k``'s half list: a granular ``j``
+    after ``k``, or any wall or leg particle."""
+    return KND[j] != SOIL or j > k
+
+
+@numba.njit(inline="always", fastmath=True)
+def _strain_half_pair(k, j, fdw, X, Z, VX, VZ, VOL, RHO, KND, buf, acc):
+    """Pass 1 terms of the pair (k, j) (fdw != 0): returns k's updated sums (d rho, Lxx, Lxz,
+    Lzx, Lzz); a granular j's go to buf[j] (see :func:`_strain_terms`)."""
+    dvg, txx, txz, tzx, tzz = _strain_terms(X[k] - X[j], Z[k] - Z[j], VX[k] - VX[j],
+                                            VZ[k] - VZ[j], fdw)
+    if KND[j] == SOIL:
+        voli = VOL[k]
+        buf[j, 0] += voli * RHO[k] * dvg
+        buf[j, 1] -= voli * txx
+        buf[j, 2] -= voli * txz
+        buf[j, 3] -= voli * tzx
+        buf[j, 4] -= voli * tzz
+    dr, gxx, gxz, gzx, gzz = acc
+    volj = VOL[j]
+    return (dr + volj * RHO[j] * dvg, gxx - volj * txx, gxz - volj * txz, gzx - volj * tzx,
+            gzz - volj * tzz)
+
+
+@numba.njit(inline="always", fastmath=True)
+def _strain_half_one(k, X, Z, VX, VZ, VOL, RHO, NOX, NOZ, KND, DCL, cell_start, vj, vn, nbj,
+                     nbw, nbn, buf, par):
+    """Pass 1 for granular column ``k``: builds its half Verlet list if ``build`` (columns
+    :func:`_wanted` within ``rlist``: vj, vn; -1 on overflow), visits its pairs, hands the
+    ones inside the support to pass 2 (nbj, nbw, nbn; -1 on overflow: pass 2 searches the
+    cells) and adds its sums to buf[k]. par = (h, xmin, zmin, inv_cell, ncx, ncz, rlist,
+    build)."""
+    if KND[k] != SOIL:
+        return
+    h, xmin, zmin, inv_cell, ncx, ncz, rlist, build = par
+    sup2 = 4.0 * h * h
+    dwc = -5.0 * _W2D / (h * h * h * h)
+    inv_h = 1.0 / h
+    xi = X[k]
+    zi = Z[k]
+    cx, cz = _cell_xz(xi, zi, xmin, zmin, inv_cell, ncx, ncz)
+    maxn = vj.shape[1]
+    if build:
+        rl2 = rlist * rlist
+        cnt = 0
+        for dz in range(-REACH, REACH + 1):
+            lo, hi = _row_span(cx, cz, dz, ncx, ncz, cell_start)
+            for j in range(lo, hi):
+                if _wanted(k, j, KND):
+                    rx = xi - X[j]
+                    rz = zi - Z[j]
+                    if rx * rx + rz * rz < rl2:
+                        if cnt < maxn:
+                            vj[k, cnt] = j
+                        cnt += 1
+        vn[k] = cnt if cnt <= maxn else -1
+    acc = (0.0, 0.0, 0.0, 0.0, 0.0)
+    cnt = vn[k]
+    nbn[k] = -1
+    if cnt >= 0:
+        m = 0
+        for n in range(cnt):
+            j = vj[k, n]
+            fdw = _pair_fdw(j, xi - X[j], zi - Z[j], KND, NOX, NOZ, DCL, sup2, inv_h, dwc)
+            if fdw != 0.0:
+                acc = _strain_half_pair(k, j, fdw, X, Z, VX, VZ, VOL, RHO, KND, buf, acc)
+                nbj[k, m] = j
+                nbw[k, m] = fdw
+                m += 1
+        nbn[k] = m
+    else:
+        for dz in range(-REACH, REACH + 1):
+            lo, hi = _row_span(cx, cz, dz, ncx, ncz, cell_start)
+            for j in range(lo, hi):
+                if _wanted(k, j, KND):
+                    fdw = _pair_fdw(j, xi - X[j], zi - Z[j], KND, NOX, NOZ, DCL, sup2, inv_h,
+                                    dwc)
+                    if fdw != 0.0:
+                        acc = _strain_half_pair(k, j, fdw, X, Z, VX, VZ, VOL, RHO, KND, buf,
+                                                acc)
+    dr, gxx, gxz, gzx, gzz = acc
+    buf[k, 0] += dr
+    buf[k, 1] += gxx
+    buf[k, 2] += gxz
+    buf[k, 3] += gzx
+    buf[k, 4] += gzz
+
+
+@numba.njit(inline="always", fastmath=True)
+def _accel_half_pair(k, j, fdw, X, Z, VX, VZ, PXX, PZZ, PXZ, VOL, RHO, NOX, NOZ, KND, DCL, GRD,
+                     pp, buf, acc):
+    """Pass 2 terms of the pair (k, j): a granular j gets its share in buf[j] (minus the
+    term per unit mass of k), a wall or leg j goes through :func:`_accel_pair`."""
+    if KND[j] != SOIL:
+        return _accel_pair(j, fdw, X, Z, VX, VZ, PXX, PZZ, PXZ, VOL, RHO, NOX, NOZ, KND, DCL,
+                           GRD, pp, acc)
+    tx, tz = _stress_term(j, fdw, X[k] - X[j], Z[k] - Z[j], VX, VZ, PXX, PZZ, PXZ, RHO, KND,
+                          pp)
+    mi = pp[17]
+    buf[j, 0] -= mi * tx
+    buf[j, 1] -= mi * tz
+    mj = VOL[j] * RHO[j]
+    a_x, a_z, fx, fz, tq, dmin, pnx, pnz = acc
+    return (a_x + mj * tx, a_z + mj * tz, fx, fz, tq, dmin, pnx, pnz)
+
+
+@numba.njit(inline="always", fastmath=True)
+def _accel_half_one(k, X, Z, VX, VZ, PXX, PZZ, PXZ, VOL, RHO, NOX, NOZ, KND, DCL, GRD,
+                    cell_index, cell_start, mass, nbj, nbw, nbn, buf, fleg, cont, par):
+    """Pass 2's pair sums of granular column ``k`` over its half list (see
+    :func:`_strain_half_one`): accelerations to buf[k, 0:2], its force on the leg to
+    fleg[i], the contact guard's nearest leg surface (dmin, nx, nz) to cont[k]."""
+    if KND[k] != SOIL:
+        return
+    h = par[0]
+    sup2 = 4.0 * h * h
+    dwc = -5.0 * _W2D / (h * h * h * h)
+    inv_h = 1.0 / h
+    i = cell_index[k]
+    pp = _accel_pp(k, X, Z, VX, VZ, PXX, PZZ, PXZ, RHO, mass[i], par)
+    xi = X[k]
+    zi = Z[k]
+    acc = (0.0, 0.0, 0.0, 0.0, 0.0, par[18], 0.0, 0.0)
+    cnt = nbn[k]
+    if cnt >= 0:
+        for n in range(cnt):
+            acc = _accel_half_pair(k, nbj[k, n], nbw[k, n], X, Z, VX, VZ, PXX, PZZ, PXZ, VOL,
+                                   RHO, NOX, NOZ, KND, DCL, GRD, pp, buf, acc)
+    else:
+        cx, cz = _cell_xz(xi, zi, par[1], par[2], par[3], par[4], par[5])
+        for dz in range(-REACH, REACH + 1):
+            lo, hi = _row_span(cx, cz, dz, par[4], par[5], cell_start)
+            for j in range(lo, hi):
+                if _wanted(k, j, KND):
+                    fdw = _pair_fdw(j, xi - X[j], zi - Z[j], KND, NOX, NOZ, DCL, sup2, inv_h,
+                                    dwc)
+                    if fdw != 0.0:
+                        acc = _accel_half_pair(k, j, fdw, X, Z, VX, VZ, PXX, PZZ, PXZ, VOL,
+                                               RHO, NOX, NOZ, KND, DCL, GRD, pp, buf, acc)
+    a_x, a_z, fx, fz, tq, dmin, pnx, pnz = acc
+    buf[k, 0] += a_x
+    buf[k, 1] += a_z
+    fleg[i, 0] = fx
+    fleg[i, 1] = fz
+    fleg[i, 2] = tq
+    cont[k, 0] = dmin
+    cont[k, 1] = pnx
+    cont[k, 2] = pnz
+
+
+#: Most chunks of the pair passes (a multiple of 4: balanced on 1, 2 and 4 threads).
+MAX_CHUNKS = 64
+
+
+@numba.njit(cache=True)
+def chunk_bounds(cell_start, ncx, ncz, n, bounds):
+    """Split the columns 0..n into chunks for the pair passes: each at least as long as the
+    furthest any column's candidates reach ahead in cell order (to the last particle of the
+    cell REACH rows and columns on). Writes bounds[0..q] and returns q, the number of chunks
+    (at most MAX_CHUNKS; a multiple of 4 when there are at least 4)."""
+    span = 1
+    for cz in range(ncz):
+        z1 = min(cz + REACH, ncz - 1)
+        for cx in range(ncx):
+            c = cz * ncx + cx
+            if cell_start[c + 1] == cell_start[c]:
+                continue
+            end = cell_start[z1 * ncx + min(cx + REACH, ncx - 1) + 1]
+            span = max(span, end - cell_start[c])
+    q = min(max(n // span, 1), MAX_CHUNKS)
+    if q >= 4:
+        q -= q % 4
+    for c in range(q + 1):
+        bounds[c] = c * n // q
+    return q
 
 
 # ------------------------------------------------------------------ CPU kernels (prange)
@@ -652,13 +865,14 @@ def regather(cell_index, vx, vz, gvx, gvz, rho, mass, kind, sxx, szz, sxz, out_f
 @numba.njit(parallel=True, fastmath=True, cache=True)
 def strain_stress(srt, srtk, cell_index, h, xmin, zmin, inv_cell, ncx, ncz, cell_start,
                   rho, sxx, szz, sxz, syy, dt, shear_mod, bulk_mod, alpha_phi, k_c, rho_min,
-                  rho_max, vj, vn, nbj, nbw, nbn, rlist, build):
+                  rho_max, vj, vn, nbj, nbw, nbn, rlist, build, buf, bounds, nchunk):
     """First pass (velocities only): d rho/dt and the velocity gradient L of every granular
     particle (lxx = dvx/dx, lxz = dvx/dz, ...), then its new density and stress
     (:func:`dp_update`). Reads only the cell-ordered copies made by :func:`gather`, so it can
-    write the new state by particle id in the same pass. vj, vn: the Verlet list, rebuilt
-    from the cells if ``build`` with radius ``rlist``; nbj, nbw, nbn: pass 2's neighbour list
-    (:func:`neighbour_list`)."""
+    write the new state by particle id. vj, vn: the half Verlet lists, rebuilt from the cells
+    if ``build`` with radius ``rlist``; nbj, nbw, nbn: pass 2's lists
+    (:func:`neighbour_list`); buf: (N, 5) zeros, left zero; bounds, nchunk: the chunks of
+    :func:`chunk_bounds`."""
     X = srt[0]
     Z = srt[1]
     VX = srt[2]
@@ -669,24 +883,36 @@ def strain_stress(srt, srtk, cell_index, h, xmin, zmin, inv_cell, ncx, ncz, cell
     NOZ = srt[10]
     KND = srtk[0]
     DCL = srtk[1]
-    par = (h, xmin, zmin, inv_cell, ncx, ncz, dt, shear_mod, bulk_mod, alpha_phi, k_c, rho_min,
-           rho_max, rlist, build)
+    par = (h, xmin, zmin, inv_cell, ncx, ncz, rlist, build)
+    for phase in range(2):
+        for c in prange((nchunk + 1 - phase) // 2):
+            cc = 2 * c + phase
+            for k in range(bounds[cc], bounds[cc + 1]):
+                _strain_half_one(k, X, Z, VX, VZ, VOL, RHO, NOX, NOZ, KND, DCL, cell_start, vj,
+                                 vn, nbj, nbw, nbn, buf, par)
     for k in prange(cell_index.shape[0]):
-        _strain_stress_one(k, X, Z, VX, VZ, VOL, RHO, NOX, NOZ, KND, DCL, cell_index, cell_start,
-                           rho, sxx, szz, sxz, syy, vj, vn, nbj, nbw, nbn, par)
+        if KND[k] != SOIL:
+            continue
+        i = cell_index[k]
+        rho[i], sxx[i], szz[i], sxz[i], syy[i] = dp_update(
+            rho[i], buf[k, 0], buf[k, 1], buf[k, 2], buf[k, 3], buf[k, 4], sxx[i], szz[i],
+            sxz[i], syy[i], dt, shear_mod, bulk_mod, alpha_phi, k_c, rho_min, rho_max)
+        for f in range(5):
+            buf[k, f] = 0.0
 
 
 @numba.njit(parallel=True, fastmath=_FM, cache=True)  # _FM: the NaN checks must stay
 def accelerations_kick(srt, srtk, cell_index, mass, h, c0, av_alpha, av_beta, av_boundary, gx,
                        gz, hip_x, hip_z, hip_vx, hip_vz, omega, half_t, gap, max_push, xmin, zmin,
                        inv_cell, ncx, ncz, cell_start, x, z, vx, vz, rho, sxx, szz, dt, damping,
-                       vmax_allowed, fleg, bad, nbj, nbw, nbn):
+                       vmax_allowed, fleg, bad, nbj, nbw, nbn, buf, cont, bounds, nchunk):
     """Second pass (stresses): acceleration of every granular particle, the force it exerts on
     the leg (fleg[i] = (Fx, Fz, torque about (hip_x, hip_z)), per unit depth), and its kick and
-    drift: v += dt a (optionally damped), x += dt v (symplectic Euler). The pass reads only the
-    cell-ordered copies made by :func:`gather`, so it can move the particles as it goes.
+    drift: v += dt a (optionally damped), x += dt v (symplectic Euler). The pair sums read
+    only the cell-ordered copies made by :func:`gather`; the particles move after them.
     Returns the number of particles that went non-finite or faster than ``vmax_allowed``
-    (``bad[i]`` = 1 for those). Artificial
+    (``bad[i]`` = 1 for those). buf: (N, 5) zeros, left zero; cont: (N, 3) scratch; bounds,
+    nchunk: the chunks of :func:`chunk_bounds`. Artificial
     viscosity acts between granular particles, and on wall/leg pairs only if ``av_boundary``:
     its stress ~ alpha rho c v scales with the (numerical) sound speed and would add a drag
     proportional to the leg speed that the material does not have.
@@ -718,10 +944,23 @@ def accelerations_kick(srt, srtk, cell_index, mass, h, c0, av_alpha, av_beta, av
     par = _accel_par(h, c0, av_alpha, av_beta, av_boundary, gx, gz, hip_x, hip_z, hip_vx, hip_vz,
                      omega, half_t, gap, max_push, xmin, zmin, inv_cell, ncx, ncz, dt, damping,
                      vmax_allowed)
+    for phase in range(2):
+        for c in prange((nchunk + 1 - phase) // 2):
+            cc = 2 * c + phase
+            for k in range(bounds[cc], bounds[cc + 1]):
+                _accel_half_one(k, X, Z, VX, VZ, PXX, PZZ, PXZ, VOL, RHO, NOX, NOZ, KND, DCL,
+                                GRD, cell_index, cell_start, mass, nbj, nbw, nbn, buf, fleg,
+                                cont, par)
     for k in prange(cell_index.shape[0]):
-        nbad += _accel_kick_one(k, X, Z, VX, VZ, PXX, PZZ, PXZ, VOL, RHO, NOX, NOZ, KND, DCL, GRD,
-                                cell_index, cell_start, mass, x, z, vx, vz, rho, sxx, szz, fleg,
-                                bad, (nbj, nbw, nbn), par)
+        if KND[k] != SOIL:
+            continue
+        i = cell_index[k]
+        acc = (buf[k, 0], buf[k, 1], fleg[i, 0], fleg[i, 1], fleg[i, 2], cont[k, 0],
+               cont[k, 1], cont[k, 2])
+        buf[k, 0] = 0.0
+        buf[k, 1] = 0.0
+        nbad += _kick_one(i, X[k], Z[k], VX[k], VZ[k], acc, mass, x, z, vx, vz, rho, sxx, szz,
+                          fleg, bad, par)
     return nbad
 
 

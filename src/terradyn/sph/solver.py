@@ -410,6 +410,11 @@ class CPUBackend:
         self.xb = np.full(solver.n, np.inf)  # positions at the last list build: none yet
         self.zb = np.full(solver.n, np.inf)
         self.builds = 0
+        # the pair passes' buffer for the other particle of a pair, and their chunks
+        self.buf = np.zeros((solver.n, 5))
+        self.cont = np.zeros((solver.n, 3))
+        self.bounds = np.zeros(K.MAX_CHUNKS + 1, np.int64)
+        self.nchunk = 1
 
     def place(self, pose) -> None:
         s = self.s
@@ -433,6 +438,7 @@ class CPUBackend:
         if build:
             K.bin_particles(s.x, s.z, s.xmin, s.zmin, s.inv_cell, s.ncx, s.ncz, s.cell_start,
                             s.cell_index)
+            self.nchunk = K.chunk_bounds(s.cell_start, s.ncx, s.ncz, s.n, self.bounds)
             self.xb[:] = s.x
             self.zb[:] = s.z
             self.builds += 1
@@ -442,7 +448,8 @@ class CPUBackend:
                  s.noz, s.dcl, s.guard, s.sxx, s.szz, s.sxz, s._srt, s._srtk)
         K.strain_stress(s._srt, s._srtk, s.cell_index, s.h, *grid[:6], s.rho, s.sxx, s.szz,
                         s.sxz, s.syy, s.dt, mat.shear_modulus, mat.bulk_modulus, mat.alpha_phi,
-                        mat.k_c, 0.9 * mat.density, 1.1 * mat.density, *self.nb, rlist, build)
+                        mat.k_c, 0.9 * mat.density, 1.1 * mat.density, *self.nb, rlist, build,
+                        self.buf, self.bounds, self.nchunk)
         self._boundaries(gx, gz)
         K.regather(s.cell_index, s.vx, s.vz, s.gvx, s.gvz, s.rho, s.mass, s.kind, s.sxx, s.szz,
                    s.sxz, s._srt)
@@ -450,7 +457,8 @@ class CPUBackend:
             s._srt, s._srtk, s.cell_index, s.mass, s.h, s.c0, cfg.av_alpha, cfg.av_beta,
             cfg.av_boundary, gx, gz, hip_x, hip_z, hip_vx, hip_vz, omega, s.half_t, s.gap,
             0.1 * cfg.dx, *grid[:6], s.x, s.z, s.vx, s.vz, s.rho, s.sxx, s.szz, s.dt, damping,
-            s.vmax_allowed, s.fleg, s.bad, *self.nb[2:])
+            s.vmax_allowed, s.fleg, s.bad, *self.nb[2:], self.buf, self.cont, self.bounds,
+            self.nchunk)
         if nbad or s.scene.leg is None:
             return nbad, None
         return nbad, K.column_sums3(s.fleg)  # rows of non-granular particles stay 0
