@@ -93,6 +93,7 @@ def test_verlet_lists_match_a_fresh_cell_search_every_step_and_fall_back_on_over
         be = s._backend
         if mode == "overflow":  # lists 3 wide: every particle overflows
             be.nb = tuple(np.zeros((s.n, 3), a.dtype) if a.ndim == 2 else a for a in be.nb)
+            be.bj = np.zeros((len(be.bidx), 3), np.int32)  # the walls' and leg's lists too
         f = []
         for _ in range(300):
             if mode == "every step":
@@ -116,6 +117,7 @@ def test_verlet_lists_match_a_fresh_cell_search_every_step_and_fall_back_on_over
     over = np.array([np.count_nonzero(half(c, k, 2 * c.h)) > 3 for k in soil])
     assert over.mean() > 0.5  # lists 3 wide overflow for most, and pass 2 knows it
     assert np.all(c._backend.nb[1][soil[over]] == -1) and np.all(c._backend.nb[4][soil[over]] == -1)
+    assert (c._backend.bn == -1).mean() > 0.5 and (a._backend.bn > 3).mean() > 0.5
     nbn = a._backend.nb[4]
     checked = 0
     for k in np.flatnonzero(a._srtk[0] == K.SOIL)[::7]:

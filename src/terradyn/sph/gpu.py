@@ -242,11 +242,11 @@ def _k_place(S, lidx, body, c, s, hip_x, hip_z, hip_vx, hip_vz, hip_ax, hip_az, 
 
 
 @cuda.jit
-def _k_boundary(S, kind, bidx, grav, grid, cell_start, cell_index, noslip):
+def _k_boundary(S, kind, bidx, grav, grid, cell_start, cell_index, noslip, bj, bn, build):
     for kk in range(cuda.grid(1), bidx.shape[0], cuda.gridsize(1)):
         _boundary_one(kk, S[X], S[Z], S[VX], S[VZ], S[RHO], kind, S[NOX], S[NOZ], S[DCL],
                       S[SXX], S[SZZ], S[SXZ], S[SYY], S[GVX], S[GVZ], bidx, S[AX], S[AZ], grav,
-                      grid, cell_start, cell_index, noslip)
+                      grid, cell_start, cell_index, noslip, bj, bn, build)
 
 
 @cuda.jit
@@ -369,6 +369,8 @@ class GPUBackend:
         bidx = np.concatenate([s.widx, s.lidx]).astype(np.int32)
         self.nbnd = len(bidx)
         self.bidx = cuda.to_device(bidx if len(bidx) else np.zeros(1, np.int32))
+        self.bnb = tuple(cuda.to_device(a) for a in
+                         K.neighbour_list(max(self.nbnd, 1), s.scene.config.hdx)[:2])
         self.nleg = len(s.lidx)
         leg = s.scene.leg
         if self.nleg:
@@ -417,11 +419,11 @@ class GPUBackend:
                                           math.sin(ang), hip_x, hip_z, hip_vx, hip_vz, hip_ax,
                                           hip_az, omega, alpha)
 
-    def _boundaries(self, grav, grid, noslip):
+    def _boundaries(self, grav, grid, noslip, build):
         if self.nbnd:
             _k_boundary[_blocks(self.nbnd), TPB](self.S, self.kind, self.bidx, grav, grid,
                                                  self.bins.cell_start, self.bins.cell_index,
-                                                 noslip)
+                                                 noslip, *self.bnb, build)
 
     def step(self, pose, damping):
         """Pass 1 and 2 of one step (the leg is placed already); returns (number of unstable
@@ -448,7 +450,7 @@ class GPUBackend:
         grid = (h, xmin, zmin, inv_cell, ncx, ncz)
         grav = (gx, gz)
         noslip = bool(cfg.noslip)
-        self._boundaries(grav, grid, noslip)
+        self._boundaries(grav, grid, noslip, build)
         _k_gather[nb, TPB](b.cell_index, self.S, self.kind, self.srt, self.srtk)
         par = (h, xmin, zmin, inv_cell, ncx, ncz, dt, float(mat.shear_modulus),
                float(mat.bulk_modulus), float(mat.alpha_phi), float(mat.k_c),
@@ -456,7 +458,7 @@ class GPUBackend:
                float((2.0 + K.SKIN) * h), build)
         _k_strain[nb, TPB](self.srt, self.srtk, b.cell_index, b.cell_start, self.S, *self.nb,
                            par)
-        self._boundaries(grav, grid, noslip)
+        self._boundaries(grav, grid, noslip, False)
         _k_regather[nb, TPB](b.cell_index, self.S, self.kind, self.srt)
         hip_x, hip_z, hip_vx, hip_vz = (float(v) for v in pose[:4]) if pose else (0.0,) * 4
         omega = float(pose[7]) if pose else 0.0

@@ -165,51 +165,82 @@ def _row_span(cx, cz, dz, ncx, ncz, cell_start):
 
 
 @_source
+def _bnd_pair(xw, zw, f, isleg, nxw, nzw, dclw, ex, ez, x, z, vx, vz, rho, sxx, szz, sxz, syy,
+              h, acc):
+    """Granular particle ``f`` as a neighbour of a boundary particle at (xw, zw) (see
+    :func:`_boundary_one`): its Shepard-weighted sums acc = (sum W, sigma_xx W, sigma_zz W,
+    sigma_xz W, sigma_yy W, v_x W, v_z W, hydrostatic term), updated; unchanged outside the
+    support or, for a leg particle (isleg; outward normal (nxw, nzw), offset dclw), on the
+    leg's other side. (ex, ez) = g - a_w."""
+    rx = xw - x[f]
+    rz = zw - z[f]
+    if isleg and (-rx * nxw - rz * nzw + dclw) <= 0.0:
+        return acc
+    wgt = wendland_w(math.sqrt(rx * rx + rz * rz), h)
+    if wgt == 0.0:
+        return acc
+    ssum, axx, azz, axz, ayy, avx, avz, hyd = acc
+    return (ssum + wgt, axx + sxx[f] * wgt, azz + szz[f] * wgt, axz + sxz[f] * wgt,
+            ayy + syy[f] * wgt, avx + vx[f] * wgt, avz + vz[f] * wgt,
+            hyd + rho[f] * (ex * rx + ez * rz) * wgt)
+
+
+@_source
 def _boundary_one(kk, x, z, vx, vz, rho, kind, nox, noz, dcl, sxx, szz, sxz, syy, gvx, gvz,
-                  bidx, acc_x, acc_z, grav, grid, cell_start, cell_index, noslip):
+                  bidx, acc_x, acc_z, grav, grid, cell_start, cell_index, noslip, bj, bn,
+                  build):
     """Boundary particle ``bidx[kk]``: stress and ghost velocity (see :func:`boundary_state`).
     Reads granular particles only and writes the boundary particle only. grav = (gx, gz);
-    grid = (h, xmin, zmin, inv_cell, ncx, ncz). (Calls with more than 30 arguments become
-    *args calls in CPython's bytecode, which Numba cannot inline: hence the tuples.)"""
+    grid = (h, xmin, zmin, inv_cell, ncx, ncz). Candidates come from its Verlet list (bj[kk,
+    :bn[kk]]: the granular particles within 2h + skin at the last build, -1: more than fit, or
+    no list: search the cells), made here from the cells if ``build``. (Calls with more than
+    30 arguments become *args calls in CPython's bytecode, which Numba cannot inline: hence
+    the tuples.)"""
     gx, gz = grav
     h, xmin, zmin, inv_cell, ncx, ncz = grid
     w = bidx[kk]
     xw = x[w]
     zw = z[w]
     cx, cz = _cell_xz(xw, zw, xmin, zmin, inv_cell, ncx, ncz)
-    ssum = 0.0
-    axx = 0.0
-    azz = 0.0
-    axz = 0.0
-    ayy = 0.0
-    avx = 0.0
-    avz = 0.0
-    hyd = 0.0
+    acc = (0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0)
     isleg = kind[w] == LEG
+    nxw = nox[w]
+    nzw = noz[w]
+    dclw = dcl[w]
     ex = gx - acc_x[w]
     ez = gz - acc_z[w]
-    for dz in range(-REACH, REACH + 1):
-        lo, hi = _row_span(cx, cz, dz, ncx, ncz, cell_start)
-        for p in range(lo, hi):
-            f = cell_index[p]
-            if kind[f] != SOIL:
-                continue
-            rx = xw - x[f]
-            rz = zw - z[f]
-            if isleg and (-rx * nox[w] - rz * noz[w] + dcl[w]) <= 0.0:
-                continue
-            r = math.sqrt(rx * rx + rz * rz)
-            wgt = wendland_w(r, h)
-            if wgt == 0.0:
-                continue
-            ssum += wgt
-            axx += sxx[f] * wgt
-            azz += szz[f] * wgt
-            axz += sxz[f] * wgt
-            ayy += syy[f] * wgt
-            avx += vx[f] * wgt
-            avz += vz[f] * wgt
-            hyd += rho[f] * (ex * rx + ez * rz) * wgt
+    maxn = bj.shape[1]
+    if build:
+        rl2 = ((2.0 + SKIN) * h) ** 2
+        cnt = 0
+        for dz in range(-REACH, REACH + 1):
+            lo, hi = _row_span(cx, cz, dz, ncx, ncz, cell_start)
+            for p in range(lo, hi):
+                f = cell_index[p]
+                if kind[f] == SOIL:
+                    rx = xw - x[f]
+                    rz = zw - z[f]
+                    if rx * rx + rz * rz < rl2:
+                        if cnt < maxn:
+                            bj[kk, cnt] = f
+                        cnt += 1
+        bn[kk] = cnt if cnt <= maxn else -1
+    cnt = bn[kk]
+    if cnt >= 0:
+        for n in range(cnt):
+            f = bj[kk, n]
+            if kind[f] == SOIL:
+                acc = _bnd_pair(xw, zw, f, isleg, nxw, nzw, dclw, ex, ez, x, z, vx, vz, rho,
+                                sxx, szz, sxz, syy, h, acc)
+    else:
+        for dz in range(-REACH, REACH + 1):
+            lo, hi = _row_span(cx, cz, dz, ncx, ncz, cell_start)
+            for p in range(lo, hi):
+                f = cell_index[p]
+                if kind[f] == SOIL:
+                    acc = _bnd_pair(xw, zw, f, isleg, nxw, nzw, dclw, ex, ez, x, z, vx, vz,
+                                    rho, sxx, szz, sxz, syy, h, acc)
+    ssum, axx, azz, axz, ayy, avx, avz, hyd = acc
     if ssum > 0.0:
         inv = 1.0 / ssum
         # p_w = <p> + rho (g - a_w).(x_w - x_f) (Adami 2012); sigma = -p I, tension
@@ -281,14 +312,12 @@ def _regather_one(k, cell_index, vx, vz, gvx, gvz, rho, mass, kind, sxx, szz, sx
 def _pair_fdw(j, rx, rz, KND, NOX, NOZ, DCL, sup2, inv_h, dwc):
     """Kernel-gradient factor of granular particle i and column j (grad_i W = fdw r_ij, r_ij
     = (rx, rz) = x_i - x_j): 0 outside the support or when j is a leg particle on the other
-    side of the (thin) leg, else negative."""
+    side of the (thin) leg, else negative. Written without branches: the compiler turns the
+    branching form into code an order of magnitude slower (benchmarks/bench_sph.py)."""
     r2 = rx * rx + rz * rz
-    if r2 >= sup2:
-        return 0.0
-    if KND[j] == LEG and (rx * NOX[j] + rz * NOZ[j] + DCL[j]) <= 0.0:
-        return 0.0  # material on the other side of the thin leg
     t = 1.0 - 0.5 * math.sqrt(r2) * inv_h
-    return dwc * t * t * t
+    inside = (r2 < sup2) and (KND[j] != LEG or rx * NOX[j] + rz * NOZ[j] + DCL[j] > 0.0)
+    return dwc * t * t * t if inside else 0.0
 
 
 @_source
@@ -749,11 +778,13 @@ MAX_CHUNKS = 64
 
 
 @numba.njit(cache=True)
-def chunk_bounds(cell_start, ncx, ncz, n, bounds):
-    """Split the columns 0..n into chunks for the pair passes: each at least as long as the
-    furthest any column's candidates reach ahead in cell order (to the last particle of the
-    cell REACH rows and columns on). Writes bounds[0..q] and returns q, the number of chunks
-    (at most MAX_CHUNKS; a multiple of 4 when there are at least 4)."""
+def chunk_bounds(cell_start, cell_index, kind, ncx, ncz, bounds):
+    """Split the columns (cell order) for the pair passes into chunks of about equal numbers of
+    granular particles (the work), each but the first at least as long as the furthest any
+    column's candidates reach ahead in cell order (to the last particle of the cell REACH
+    rows and columns on). Writes bounds[0..q] and returns q, the number of chunks: at most
+    MAX_CHUNKS, a multiple of 4 when there are at least 4 (balanced on 1, 2 or 4 threads)."""
+    n = cell_index.shape[0]
     span = 1
     for cz in range(ncz):
         z1 = min(cz + REACH, ncz - 1)
@@ -763,12 +794,29 @@ def chunk_bounds(cell_start, ncx, ncz, n, bounds):
                 continue
             end = cell_start[z1 * ncx + min(cx + REACH, ncx - 1) + 1]
             span = max(span, end - cell_start[c])
+    soil = np.empty(n + 1, np.int64)  # granular particles before column k
+    soil[0] = 0
+    for k in range(n):
+        soil[k + 1] = soil[k] + (1 if kind[cell_index[k]] == SOIL else 0)
     q = min(max(n // span, 1), MAX_CHUNKS)
     if q >= 4:
         q -= q % 4
-    for c in range(q + 1):
-        bounds[c] = c * n // q
-    return q
+    while q > 1:
+        bounds[0] = 0
+        k = 0
+        for c in range(1, q):  # cut where the granular count reaches c / q of the total
+            goal = soil[n] * c // q
+            k = max(k, bounds[c - 1] + (span if c > 1 else 1))
+            while k < n and soil[k] < goal:
+                k += 1
+            bounds[c] = k
+        bounds[q] = n
+        if n - bounds[q - 1] >= span:
+            return q
+        q = q - 4 if q > 4 else q - 1
+    bounds[0] = 0
+    bounds[1] = n
+    return 1
 
 
 # ------------------------------------------------------------------ CPU kernels (prange)
@@ -830,15 +878,18 @@ def bin_particles(x, z, xmin, zmin, inv_cell, ncx, ncz, cell_start, cell_index):
 @numba.njit(parallel=True, fastmath=True, cache=True)
 def boundary_state(x, z, vx, vz, rho, mass, kind, nox, noz, dcl, sxx, szz, sxz, syy,
                    gvx, gvz, bidx, acc_x, acc_z, gx, gz, h,
-                   xmin, zmin, inv_cell, ncx, ncz, cell_start, cell_index, noslip):
+                   xmin, zmin, inv_cell, ncx, ncz, cell_start, cell_index, noslip, bj, bn,
+                   build):
     """Stress and ghost velocity of every boundary particle (ids ``bidx``) from the granular
     particles around it (Shepard average + hydrostatic term). acc_x/acc_z: (N,) wall
-    accelerations. ``noslip``: ghost velocity 2 v_w - <v>; else <v> (free slip)."""
+    accelerations. ``noslip``: ghost velocity 2 v_w - <v>; else <v> (free slip). bj, bn:
+    the boundary particles' Verlet lists (rows as ``bidx``), rebuilt if ``build``."""
     grav = (gx, gz)
     grid = (h, xmin, zmin, inv_cell, ncx, ncz)
     for kk in prange(bidx.shape[0]):
         _boundary_one(kk, x, z, vx, vz, rho, kind, nox, noz, dcl, sxx, szz, sxz, syy, gvx, gvz,
-                      bidx, acc_x, acc_z, grav, grid, cell_start, cell_index, noslip)
+                      bidx, acc_x, acc_z, grav, grid, cell_start, cell_index, noslip, bj, bn,
+                      build)
 
 
 @numba.njit(parallel=True, fastmath=True, cache=True)

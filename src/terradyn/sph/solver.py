@@ -415,6 +415,8 @@ class CPUBackend:
         self.cont = np.zeros((solver.n, 3))
         self.bounds = np.zeros(K.MAX_CHUNKS + 1, np.int64)
         self.nchunk = 1
+        nbl = K.neighbour_list(max(len(self.bidx), 1), solver.scene.config.hdx)
+        self.bj, self.bn = nbl[0], nbl[1]  # the boundary particles' Verlet lists
 
     def place(self, pose) -> None:
         s = self.s
@@ -438,19 +440,20 @@ class CPUBackend:
         if build:
             K.bin_particles(s.x, s.z, s.xmin, s.zmin, s.inv_cell, s.ncx, s.ncz, s.cell_start,
                             s.cell_index)
-            self.nchunk = K.chunk_bounds(s.cell_start, s.ncx, s.ncz, s.n, self.bounds)
+            self.nchunk = K.chunk_bounds(s.cell_start, s.cell_index, s.kind, s.ncx, s.ncz,
+                                          self.bounds)
             self.xb[:] = s.x
             self.zb[:] = s.z
             self.builds += 1
         grid = (s.xmin, s.zmin, s.inv_cell, s.ncx, s.ncz, s.cell_start, s.cell_index)
-        self._boundaries(gx, gz)
+        self._boundaries(gx, gz, build)
         K.gather(s.cell_index, s.x, s.z, s.vx, s.vz, s.gvx, s.gvz, s.rho, s.mass, s.kind, s.nox,
                  s.noz, s.dcl, s.guard, s.sxx, s.szz, s.sxz, s._srt, s._srtk)
         K.strain_stress(s._srt, s._srtk, s.cell_index, s.h, *grid[:6], s.rho, s.sxx, s.szz,
                         s.sxz, s.syy, s.dt, mat.shear_modulus, mat.bulk_modulus, mat.alpha_phi,
                         mat.k_c, 0.9 * mat.density, 1.1 * mat.density, *self.nb, rlist, build,
                         self.buf, self.bounds, self.nchunk)
-        self._boundaries(gx, gz)
+        self._boundaries(gx, gz, False)
         K.regather(s.cell_index, s.vx, s.vz, s.gvx, s.gvz, s.rho, s.mass, s.kind, s.sxx, s.szz,
                    s.sxz, s._srt)
         nbad = K.accelerations_kick(
@@ -463,13 +466,14 @@ class CPUBackend:
             return nbad, None
         return nbad, K.column_sums3(s.fleg)  # rows of non-granular particles stay 0
 
-    def _boundaries(self, gx, gz):
+    def _boundaries(self, gx, gz, build):
         s = self.s
         grid = (s.xmin, s.zmin, s.inv_cell, s.ncx, s.ncz, s.cell_start, s.cell_index)
         if len(self.bidx):
             K.boundary_state(s.x, s.z, s.vx, s.vz, s.rho, s.mass, s.kind, s.nox, s.noz, s.dcl,
                              s.sxx, s.szz, s.sxz, s.syy, s.gvx, s.gvz, self.bidx, s.acc_x,
-                             s.acc_z, gx, gz, s.h, *grid, s.scene.config.noslip)
+                             s.acc_z, gx, gz, s.h, *grid, s.scene.config.noslip, self.bj,
+                             self.bn, build)
 
     def drop_lost(self, box) -> int:
         s = self.s
