@@ -291,6 +291,33 @@ def test_instability_is_reported_with_step_and_particle():
     assert "unstable at step 1" in str(e.value)
 
 
+def test_advance_runs_the_steps_of_step_in_blocks_bitwise():
+    """advance(n) (blocks of steps in one compiled call, across the settling phase's end
+    and the drops of lost grains every 50 steps) gives exactly the states and forces of n
+    calls of step(); instability inside a block names its step."""
+    leg = td.flat_leg()
+    traj = td.Rotation(omega=4.0, hip_height=0.02, theta_start=-65 * DEG, theta_end=-45 * DEG,
+                       n_theta=5).trajectory()
+    mk = lambda: solver.Solver(scenes.leg_scene(  # noqa: E731
+        leg, traj, 0, bed_width=0.16, bed_depth=0.04, config=SPHConfig(dx=5e-3,
+                                                                       settle_time=2e-3)))
+    a, b = mk(), mk()
+    n = 130
+    assert a.settle_time < n * a.dt  # the block crosses the end of settling
+    fa = np.array([a.step() for _ in range(n)])
+    tb, fb = b.advance(n)
+    assert np.array_equal(fa, fb) and np.abs(fa[:, 1]).max() > 0.05
+    assert np.array_equal(a.x, b.x) and np.array_equal(a.sxx, b.sxx)
+    assert a.t == b.t and a.step_count == b.step_count == n and tb[0] == 0.0
+    assert np.all(np.diff(tb) > 0) and len(tb) == n
+    with pytest.raises(InputError, match="nsteps"):
+        b.advance(0)
+    b.szz[int(b.sidx[5])] = np.nan
+    with pytest.raises(SPHInstabilityError) as e:
+        b.advance(10)
+    assert e.value.step == n and b.step_count == n
+
+
 def test_checkpoint_resume_reproduces_the_uninterrupted_run(tmp_path):
     leg = td.flat_leg()
     traj = td.Rotation(omega=1.0, hip_height=0.02, theta_start=-80 * DEG, theta_end=-70 * DEG,

@@ -472,6 +472,22 @@ class GPUBackend:
         a = self.acc.copy_to_host()
         return int(a[3]), (float(a[0]), float(a[1]), float(a[2]))
 
+    def steps(self, poses, dampings, forces):
+        """Advance len(poses) steps, each launched from Python (see
+        :meth:`terradyn.sph.solver.CPUBackend.steps`); returns (steps done, unstable
+        particles)."""
+        leg = self.nleg > 0
+        for i in range(len(poses)):
+            pose = tuple(poses[i].tolist()) if leg else None
+            if leg:
+                self.place(pose)
+            nbad, f = self.step(pose, float(dampings[i]))
+            if nbad:
+                return i, nbad
+            if leg:
+                forces[i] = f
+        return len(poses), 0
+
     def drop_lost(self, box) -> int:
         self.reclaim()
         x0, x1, z0 = (float(v) for v in box)

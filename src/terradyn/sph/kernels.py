@@ -1045,3 +1045,77 @@ def warmup():
     from .solver import warmup as _w
 
     _w()
+
+
+# ------------------------------------------------------------------- CPU: a block of steps
+#: Scalars of :func:`cpu_steps` (float array ``fp``), by index.
+FP = ("h", "xmin", "zmin", "inv_cell", "gx", "gz", "dt", "shear_mod", "bulk_mod", "alpha_phi",
+      "k_c", "rho_min", "rho_max", "c0", "av_alpha", "av_beta", "half_t", "gap", "max_push",
+      "vmax_allowed")
+#: Integers of :func:`cpu_steps` (int64 array ``ip``): grid size, flags, and two counters it
+#: updates: the pair chunks and the list builds so far.
+IP = ("ncx", "ncz", "noslip", "av_boundary", "has_leg", "nchunk", "builds")
+
+
+@numba.njit(cache=True)
+def cpu_steps(poses, dampings, forces, x, z, vx, vz, rho, sxx, szz, sxz, syy, gvx, gvz, acc_x,
+              acc_z, nox, noz, dcl, guard, mass, kind, fleg, bad, srt, srtk, cell_start,
+              cell_index, bidx, lidx, body, xb, zb, vj, vn, nbj, nbw, nbn, bj, bn, buf, cont,
+              bounds, fp, ip):
+    """Advance ``len(poses)`` steps in one call (no Python between steps): per step, place
+    the leg at poses[s] = (hip x, z, vx, vz, ax, az, angle, omega, alpha) (if ip has_leg;
+    body = its body coordinates and normals (4, n_leg)), rebuild the Verlet lists if a
+    particle moved half the skin, extrapolate the boundary state, pass 1, boundary state
+    again, pass 2 with damping ``dampings[s]``; forces[s] = (Fx, Fz, torque) on the leg per
+    unit depth. Stops after a step in which a particle went unstable. Returns (steps done
+    without instability, unstable particles in the last step)."""
+    (h, xmin, zmin, inv_cell, gx, gz, dt, shear_mod, bulk_mod, alpha_phi, k_c, rho_min,
+     rho_max, c0, av_alpha, av_beta, half_t, gap, max_push, vmax_allowed) = (
+        fp[0], fp[1], fp[2], fp[3], fp[4], fp[5], fp[6], fp[7], fp[8], fp[9], fp[10], fp[11],
+        fp[12], fp[13], fp[14], fp[15], fp[16], fp[17], fp[18], fp[19])
+    ncx = ip[0]
+    ncz = ip[1]
+    noslip = ip[2] != 0
+    av_boundary = ip[3] != 0
+    has_leg = ip[4] != 0
+    rlist = (2.0 + SKIN) * h
+    thr = (0.5 * SKIN * h) ** 2
+    for s in range(poses.shape[0]):
+        hip_x, hip_z, hip_vx, hip_vz, hip_ax, hip_az, ang, omega, alpha = (
+            poses[s, 0], poses[s, 1], poses[s, 2], poses[s, 3], poses[s, 4], poses[s, 5],
+            poses[s, 6], poses[s, 7], poses[s, 8])
+        if has_leg:
+            place_rigid(x, z, vx, vz, acc_x, acc_z, nox, noz, lidx, body[0], body[1], body[2],
+                        body[3], hip_x, hip_z, hip_vx, hip_vz, hip_ax, hip_az, ang, omega, alpha)
+        build = max_displacement2(x, z, xb, zb) > thr
+        if build:
+            bin_particles(x, z, xmin, zmin, inv_cell, ncx, ncz, cell_start, cell_index)
+            ip[5] = chunk_bounds(cell_start, cell_index, kind, ncx, ncz, bounds)
+            xb[:] = x
+            zb[:] = z
+            ip[6] += 1
+        nchunk = ip[5]
+        if bidx.shape[0]:
+            boundary_state(x, z, vx, vz, rho, mass, kind, nox, noz, dcl, sxx, szz, sxz, syy,
+                           gvx, gvz, bidx, acc_x, acc_z, gx, gz, h, xmin, zmin, inv_cell, ncx,
+                           ncz, cell_start, cell_index, noslip, bj, bn, build)
+        gather(cell_index, x, z, vx, vz, gvx, gvz, rho, mass, kind, nox, noz, dcl, guard, sxx,
+               szz, sxz, srt, srtk)
+        strain_stress(srt, srtk, cell_index, h, xmin, zmin, inv_cell, ncx, ncz, cell_start,
+                      rho, sxx, szz, sxz, syy, dt, shear_mod, bulk_mod, alpha_phi, k_c, rho_min,
+                      rho_max, vj, vn, nbj, nbw, nbn, rlist, build, buf, bounds, nchunk)
+        if bidx.shape[0]:
+            boundary_state(x, z, vx, vz, rho, mass, kind, nox, noz, dcl, sxx, szz, sxz, syy,
+                           gvx, gvz, bidx, acc_x, acc_z, gx, gz, h, xmin, zmin, inv_cell, ncx,
+                           ncz, cell_start, cell_index, noslip, bj, bn, False)
+        regather(cell_index, vx, vz, gvx, gvz, rho, mass, kind, sxx, szz, sxz, srt)
+        nbad = accelerations_kick(
+            srt, srtk, cell_index, mass, h, c0, av_alpha, av_beta, av_boundary, gx, gz, hip_x,
+            hip_z, hip_vx, hip_vz, omega, half_t, gap, max_push, xmin, zmin, inv_cell, ncx, ncz,
+            cell_start, x, z, vx, vz, rho, sxx, szz, dt, dampings[s], vmax_allowed, fleg, bad,
+            nbj, nbw, nbn, buf, cont, bounds, nchunk)
+        if nbad:
+            return s, nbad
+        if has_leg:
+            forces[s, 0], forces[s, 1], forces[s, 2] = column_sums3(fleg)
+    return poses.shape[0], 0

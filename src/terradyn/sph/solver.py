@@ -161,9 +161,10 @@ class RigidBody:
     thickness: float = 0.0
     guard: np.ndarray | None = None  # (n,) 1 where the penetration guard applies (not the tip)
 
-    def pose(self, t_traj: float):
-        """(hip_x, hip_z, hip_vx, hip_vz, hip_ax, hip_az, angle, omega, alpha) at trajectory
-        time ``t_traj`` (linear interpolation of the samples; accelerations by differences)."""
+    def poses(self, t_traj) -> np.ndarray:
+        """(n, 9) rows (hip_x, hip_z, hip_vx, hip_vz, hip_ax, hip_az, angle, omega, alpha) at
+        the trajectory times ``t_traj`` (n,) (linear interpolation of the samples, clamped to
+        the trajectory's ends; accelerations by differences)."""
         tab = self.__dict__.get("_tab")
         tr = self.trajectory
         tt = tr.time
@@ -173,10 +174,14 @@ class RigidBody:
             tab = np.stack([tr.hip_x, tr.hip_z, tr.hip_vx, tr.hip_vz, acc[0], acc[1], tr.angle,
                             tr.angular_velocity, acc[2]])
             self.__dict__["_tab"] = tab
-        t = min(max(t_traj, tt[0]), tt[-1])
-        k = min(int(np.searchsorted(tt, t, side="right")) - 1, len(tt) - 2)
+        t = np.clip(np.asarray(t_traj, dtype=float), tt[0], tt[-1])
+        k = np.minimum(np.searchsorted(tt, t, side="right") - 1, len(tt) - 2)
         f = (t - tt[k]) / (tt[k + 1] - tt[k])
-        return tuple((tab[:, k] + f * (tab[:, k + 1] - tab[:, k])).tolist())
+        return (tab[:, k] + f * (tab[:, k + 1] - tab[:, k])).T
+
+    def pose(self, t_traj: float):
+        """The row of :meth:`poses` at one time, as a tuple."""
+        return tuple(self.poses([t_traj])[0].tolist())
 
 
 @dataclass
@@ -321,22 +326,59 @@ class Solver:
     def step(self):
         """One time step; returns (Fx, Fz, torque) on the leg per unit depth (N/m, N) at the
         start of the step."""
-        pose = self.place_leg()
-        damping = self.settle_damping if self.settling else 0.0
-        nbad, f = self._backend.step(pose, damping)
+        return tuple(self._block(1)[1][0].tolist())
+
+    def advance(self, nsteps: int):
+        """``nsteps`` time steps. Returns (t (nsteps,), forces (nsteps, 3)): the solver time
+        at the start of each step and the force on the leg then, (Fx, Fz, torque) per unit
+        depth (N/m, N), zero without a leg. Raises :class:`SPHInstabilityError` at the step
+        where a particle went unstable. The CPU backend runs the steps in blocks without
+        returning to Python (blocks end where grains thrown out of the container are
+        dropped, every 50 steps): much faster than calling :meth:`step` in a loop for small
+        beds."""
+        nsteps = int(nsteps)
+        if nsteps < 1:
+            raise InputError("nsteps", f"must be >= 1, got {nsteps}")
+        parts = []
+        done = 0
+        while done < nsteps:
+            parts.append(self._block(nsteps - done))
+            done += len(parts[-1][0])
+        if len(parts) == 1:
+            return parts[0]
+        return (np.concatenate([p[0] for p in parts]), np.concatenate([p[1] for p in parts]))
+
+    def _block(self, n: int):
+        """Up to ``n`` steps in one backend call, ending at the next drop of lost grains."""
+        if self._box is not None:
+            n = min(n, 50 - self.step_count % 50)
+        ts = np.empty(n)
+        t = self.t
+        for i in range(n):  # the same sums as stepping one by one
+            ts[i] = t
+            t += self.dt
+        settling = ts < self.settle_time
+        dampings = np.where(settling, self.settle_damping, 0.0)
+        leg = self.scene.leg
+        if leg is None:
+            poses = np.zeros((n, 9))
+        else:
+            poses = leg.poses(leg.t0 + np.maximum(ts - self.settle_time, 0.0))
+            poses[settling, 2:6] = 0.0  # the leg waits at its start pose
+            poses[settling, 7:] = 0.0
+        forces = np.zeros((n, 3))
+        done, nbad = self._backend.steps(poses, dampings, forces)
+        self.t = ts[done] if done < n else t
+        self.step_count += done
         if nbad:
             i = int(np.argmax(self.bad))  # on the GPU backend: copies the state back
             finite = np.isfinite([self.x[i], self.z[i], self.sxx[i], self.szz[i], self.rho[i]]).all()
             reason = (f"speed {math.hypot(self.vx[i], self.vz[i]):.3g} m/s exceeds the sound speed "
                       f"{self.c0:.3g} m/s" if finite else "non-finite position, density or stress")
             raise SPHInstabilityError(self.step_count, self.t, i, (self.x[i], self.z[i]), reason)
-        self.t += self.dt
-        self.step_count += 1
         if self._box is not None and self.step_count % 50 == 0:
             self._drop_lost()
-        if self.scene.leg is None:
-            return (0.0, 0.0, 0.0)
-        return f
+        return ts[:done], forces[:done]
 
     def _drop_lost(self):
         """Park granular particles that left the container far away as kind LOST."""
@@ -397,26 +439,48 @@ class Solver:
 
 class CPUBackend:
     """The solver's arrays on the host, advanced by the multi-threaded CPU kernels of
-    :mod:`terradyn.sph.kernels`."""
+    :mod:`terradyn.sph.kernels` (a block of steps per call: :func:`~.kernels.cpu_steps`)."""
 
     name = "cpu"
 
     def __init__(self, solver: Solver):
-        self.s = solver
-        self.nb = K.neighbour_list(solver.n, solver.scene.config.hdx)
-        # every boundary particle (walls, then leg) in one kernel call: a call with ~30
-        # arguments costs tens of microseconds in Numba's dispatcher alone
-        self.bidx = np.concatenate([solver.widx, solver.lidx]).astype(np.int64)
-        self.xb = np.full(solver.n, np.inf)  # positions at the last list build: none yet
-        self.zb = np.full(solver.n, np.inf)
-        self.builds = 0
-        # the pair passes' buffer for the other particle of a pair, and their chunks
-        self.buf = np.zeros((solver.n, 5))
-        self.cont = np.zeros((solver.n, 3))
-        self.bounds = np.zeros(K.MAX_CHUNKS + 1, np.int64)
-        self.nchunk = 1
-        nbl = K.neighbour_list(max(len(self.bidx), 1), solver.scene.config.hdx)
+        self.s = s = solver
+        n = solver.n
+        hdx = solver.scene.config.hdx
+        self.nb = K.neighbour_list(n, hdx)
+        # every boundary particle (walls, then leg) in one kernel call
+        self.bidx = np.concatenate([s.widx, s.lidx]).astype(np.int64)
+        nbl = K.neighbour_list(max(len(self.bidx), 1), hdx)
         self.bj, self.bn = nbl[0], nbl[1]  # the boundary particles' Verlet lists
+        self.xb = np.full(n, np.inf)  # positions at the last list build: none yet
+        self.zb = np.full(n, np.inf)
+        # the pair passes' buffer for the other particle of a pair, and their chunks
+        self.buf = np.zeros((n, 5))
+        self.cont = np.zeros((n, 3))
+        self.bounds = np.zeros(K.MAX_CHUNKS + 1, np.int64)
+        leg = s.scene.leg
+        self.body = (np.ascontiguousarray(np.stack([leg.bx, leg.bz, leg.bnx, leg.bnz]),
+                                          dtype=np.float64)
+                     if leg is not None else np.zeros((4, 0)))
+        mat = s.scene.material
+        cfg = s.scene.config
+        gx, gz = s.scene.gravity
+        val = dict(h=s.h, xmin=s.xmin, zmin=s.zmin, inv_cell=s.inv_cell, gx=gx, gz=gz, dt=s.dt,
+                   shear_mod=mat.shear_modulus, bulk_mod=mat.bulk_modulus,
+                   alpha_phi=mat.alpha_phi, k_c=mat.k_c, rho_min=0.9 * mat.density,
+                   rho_max=1.1 * mat.density, c0=s.c0, av_alpha=cfg.av_alpha,
+                   av_beta=cfg.av_beta, half_t=s.half_t, gap=s.gap, max_push=0.1 * cfg.dx,
+                   vmax_allowed=s.vmax_allowed)
+        self.fp = np.array([val[k] for k in K.FP], dtype=np.float64)
+        ival = dict(ncx=s.ncx, ncz=s.ncz, noslip=int(bool(cfg.noslip)),
+                    av_boundary=int(bool(cfg.av_boundary)), has_leg=int(leg is not None),
+                    nchunk=1, builds=0)
+        self.ip = np.array([ival[k] for k in K.IP], dtype=np.int64)
+
+    @property
+    def builds(self) -> int:
+        """Verlet-list builds so far."""
+        return int(self.ip[K.IP.index("builds")])
 
     def place(self, pose) -> None:
         s = self.s
@@ -424,56 +488,17 @@ class CPUBackend:
         K.place_rigid(s.x, s.z, s.vx, s.vz, s.acc_x, s.acc_z, s.nox, s.noz, s.lidx, leg.bx,
                       leg.bz, leg.bnx, leg.bnz, *pose)
 
-    def step(self, pose, damping):
-        """Pass 1 and 2 of one step (the leg is placed already); returns (number of unstable
-        particles, (Fx, Fz, torque) on the leg per unit depth or None without a leg)."""
+    def steps(self, poses, dampings, forces):
+        """Advance len(poses) steps (see :func:`~.kernels.cpu_steps`); returns (steps done,
+        unstable particles)."""
         s = self.s
-        mat = s.scene.material
-        cfg = s.scene.config
-        gx, gz = s.scene.gravity
-        hip_x, hip_z, hip_vx, hip_vz = pose[:4] if pose is not None else (0.0,) * 4
-        omega = pose[7] if pose is not None else 0.0
-        # Verlet list: rebuild (and re-bin) once a particle (granular, wall or leg; also a
-        # state loaded from a checkpoint) has moved half the skin since the last build
-        rlist = (2.0 + K.SKIN) * s.h
-        build = K.max_displacement2(s.x, s.z, self.xb, self.zb) > (0.5 * K.SKIN * s.h) ** 2
-        if build:
-            K.bin_particles(s.x, s.z, s.xmin, s.zmin, s.inv_cell, s.ncx, s.ncz, s.cell_start,
-                            s.cell_index)
-            self.nchunk = K.chunk_bounds(s.cell_start, s.cell_index, s.kind, s.ncx, s.ncz,
-                                          self.bounds)
-            self.xb[:] = s.x
-            self.zb[:] = s.z
-            self.builds += 1
-        grid = (s.xmin, s.zmin, s.inv_cell, s.ncx, s.ncz, s.cell_start, s.cell_index)
-        self._boundaries(gx, gz, build)
-        K.gather(s.cell_index, s.x, s.z, s.vx, s.vz, s.gvx, s.gvz, s.rho, s.mass, s.kind, s.nox,
-                 s.noz, s.dcl, s.guard, s.sxx, s.szz, s.sxz, s._srt, s._srtk)
-        K.strain_stress(s._srt, s._srtk, s.cell_index, s.h, *grid[:6], s.rho, s.sxx, s.szz,
-                        s.sxz, s.syy, s.dt, mat.shear_modulus, mat.bulk_modulus, mat.alpha_phi,
-                        mat.k_c, 0.9 * mat.density, 1.1 * mat.density, *self.nb, rlist, build,
-                        self.buf, self.bounds, self.nchunk)
-        self._boundaries(gx, gz, False)
-        K.regather(s.cell_index, s.vx, s.vz, s.gvx, s.gvz, s.rho, s.mass, s.kind, s.sxx, s.szz,
-                   s.sxz, s._srt)
-        nbad = K.accelerations_kick(
-            s._srt, s._srtk, s.cell_index, s.mass, s.h, s.c0, cfg.av_alpha, cfg.av_beta,
-            cfg.av_boundary, gx, gz, hip_x, hip_z, hip_vx, hip_vz, omega, s.half_t, s.gap,
-            0.1 * cfg.dx, *grid[:6], s.x, s.z, s.vx, s.vz, s.rho, s.sxx, s.szz, s.dt, damping,
-            s.vmax_allowed, s.fleg, s.bad, *self.nb[2:], self.buf, self.cont, self.bounds,
-            self.nchunk)
-        if nbad or s.scene.leg is None:
-            return nbad, None
-        return nbad, K.column_sums3(s.fleg)  # rows of non-granular particles stay 0
-
-    def _boundaries(self, gx, gz, build):
-        s = self.s
-        grid = (s.xmin, s.zmin, s.inv_cell, s.ncx, s.ncz, s.cell_start, s.cell_index)
-        if len(self.bidx):
-            K.boundary_state(s.x, s.z, s.vx, s.vz, s.rho, s.mass, s.kind, s.nox, s.noz, s.dcl,
-                             s.sxx, s.szz, s.sxz, s.syy, s.gvx, s.gvz, self.bidx, s.acc_x,
-                             s.acc_z, gx, gz, s.h, *grid, s.scene.config.noslip, self.bj,
-                             self.bn, build)
+        done, nbad = K.cpu_steps(
+            poses, dampings, forces, s.x, s.z, s.vx, s.vz, s.rho, s.sxx, s.szz, s.sxz, s.syy,
+            s.gvx, s.gvz, s.acc_x, s.acc_z, s.nox, s.noz, s.dcl, s.guard, s.mass, s.kind, s.fleg,
+            s.bad, s._srt, s._srtk, s.cell_start, s.cell_index, self.bidx, s.lidx, self.body,
+            self.xb, self.zb, *self.nb, self.bj, self.bn, self.buf, self.cont, self.bounds,
+            self.fp, self.ip)
+        return int(done), int(nbad)
 
     def drop_lost(self, box) -> int:
         s = self.s
@@ -568,11 +593,17 @@ def run(scene: Scene, duration: float, *, snapshot_times=(), checkpoint: str | P
         while si < len(snap_times) and tm >= snap_times[si] - 0.5 * solver.dt:
             snaps.append(solver.snapshot() | {"time": tm})
             si += 1
-        was_settling = solver.settling
-        f = solver.step()
-        if record and not was_settling:
-            rec[nrec] = (tm, f[0] * width, f[1] * width, f[2] * width)
-            nrec += 1
+        # a block of steps: up to the next snapshot, progress report or the end
+        n = min(nsteps - solver.step_count, 200 - solver.step_count % 200)
+        if si < len(snap_times):
+            n = min(n, max(1, int((snap_times[si] - 0.5 * solver.dt - tm) / solver.dt)))
+        ts, f = solver.advance(n)
+        if record:
+            keep = ts >= solver.settle_time
+            k = int(keep.sum())
+            rec[nrec:nrec + k, 0] = ts[keep] - solver.settle_time
+            rec[nrec:nrec + k, 1:] = f[keep] * width
+            nrec += k
         if progress is not None and solver.step_count % 200 == 0:
             progress(solver.t, t_total)
         if ck is not None and _time.perf_counter() - last_ck > checkpoint_every:
