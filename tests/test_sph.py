@@ -128,6 +128,63 @@ def test_verlet_lists_match_a_fresh_cell_search_every_step_and_fall_back_on_over
     assert checked > 20
 
 
+def test_pair_chunks_keep_every_write_in_the_next_chunk_and_sums_thread_independent():
+    """The pair passes write a granular pair's terms to the later particle from the chunk of
+    the earlier one; even and odd chunks run in turns, so every such write must land in the
+    writer's chunk or the next. And the sums, hence the run, are the same on 1 and 3
+    threads, bit for bit (a subprocess: this worker may have only one Numba thread)."""
+    import subprocess
+    import sys
+
+    leg = td.flat_leg()
+    traj = td.Rotation(omega=4.0, hip_height=0.02, theta_start=-65 * DEG, theta_end=-45 * DEG,
+                       n_theta=5).trajectory()
+    s = solver.Solver(scenes.leg_scene(leg, traj, 0, bed_width=0.16, bed_depth=0.04,
+                                       config=SPHConfig(dx=4e-3, settle_time=0.0)))
+    s.advance(60)
+    be = s._backend
+    q = int(be.ip[K.IP.index("nchunk")])
+    bounds = be.bounds[:q + 1]
+    assert q >= 4 and bounds[0] == 0 and bounds[-1] == s.n and np.all(np.diff(bounds) > 0)
+    KND = s._srtk[0]
+    vj, vn = be.nb[0], be.nb[1]
+    chunk = np.searchsorted(bounds, np.arange(s.n), side="right") - 1
+    soil = np.flatnonzero(KND == K.SOIL)
+    assert np.all(vn[soil] >= 0)
+    for k in soil:
+        j = vj[k, :vn[k]]
+        j = j[KND[j] == K.SOIL]
+        assert np.all(j > k) and np.all(chunk[j] - chunk[k] <= 1)
+    # where the list reach allows (a bed of 1.9k particles), chunks hold equal numbers of
+    # granular particles (the work), not of columns (the first rows are wall)
+    b = solver.Solver(scenes.bed_scene(width=0.137, depth=0.0685, dx=2.5e-3, settle_time=0.0))
+    b.advance(1)
+    q = int(b._backend.ip[K.IP.index("nchunk")])
+    chunk = np.searchsorted(b._backend.bounds[:q + 1], np.arange(b.n), side="right") - 1
+    per = np.bincount(chunk[b._srtk[0] == K.SOIL], minlength=q)
+    assert q == 8 and per.max() - per.min() <= 2, per
+
+    code = """if True:
+        import numba, numpy as np, terradyn as td
+        from terradyn.sph import SPHConfig, scenes, solver
+        traj = td.Rotation(omega=4.0, hip_height=0.02, theta_start=-1.134, theta_end=-0.785,
+                           n_theta=5).trajectory()
+        out = []
+        for nt in (1, 3):
+            numba.set_num_threads(nt)
+            s = solver.Solver(scenes.leg_scene(td.flat_leg(), traj, 0, bed_width=0.16,
+                                               bed_depth=0.04, config=SPHConfig(dx=4e-3,
+                                                                               settle_time=0.0)))
+            t, f = s.advance(150)
+            out.append((f, s.x.copy(), s.sxx.copy()))
+        print("SAME", all(np.array_equal(a, b) for a, b in zip(*out)))
+    """
+    p = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
+                       env=dict(__import__("os").environ, NUMBA_NUM_THREADS="3"), timeout=600)
+    assert p.returncode == 0, p.stderr[-2000:]
+    assert "SAME True" in p.stdout
+
+
 def _stress_step(s, L, dt=1e-3, mat=MATERIALS["3 mm glass CP"]):
     """Advance one stress state (sxx, szz, sxz, syy) by a velocity gradient L (2x2)."""
     arr = [np.array([v], float) for v in s]
