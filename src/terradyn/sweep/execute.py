@@ -231,17 +231,17 @@ def _dask(todo, address: str, retries: int, ck, run_id: str):
             futs[f.key] = (c.id, f)
         # with_results: the client fetches results concurrently as tasks finish, rather than
         # one blocking round trip per case from this loop.
-        # raise_errors=False: a failed case yields its exception. Judge by that, not by
-        # f.status: once the result is here, a worker killed later (that held the result)
-        # turns the future's status to "lost" and the case would be wrongly called failed.
+        # raise_errors=False: a failed case yields (type, exception, traceback) instead of
+        # run_case's (cid, dataset). Judge by that, not by f.status: once the result is
+        # here, a worker killed later (that held it) turns the status to "lost" and a
+        # finished case would be called failed.
         for f, res in d_completed([f for _, f in futs.values()], with_results=True, raise_errors=False):
             cid = futs.pop(f.key)[0]
-            if isinstance(res, BaseException):
-                yield cid, None, res
-            elif isinstance(res, tuple):
+            if isinstance(res, tuple) and len(res) == 2 and res[0] == cid:
                 yield res + (None,)
-            else:  # pragma: no cover - not a result of run_case
-                yield cid, None, RuntimeError(f"unexpected result of type {type(res).__name__}")
+            else:
+                err = res[1] if isinstance(res, tuple) and len(res) == 3 else res
+                yield cid, None, err if isinstance(err, BaseException) else RuntimeError(str(err))
             f.release()
     finally:
         if own:
