@@ -351,6 +351,35 @@ def _strain_pair(j, xi, zi, vxi, vzi, X, Z, VX, VZ, VOL, RHO, NOX, NOZ, KND, DCL
 
 
 @_source
+def _wanted(k, j, KND):
+    """Whether column ``j`` belongs in granular column ``k``'s half list (the CPU's: each
+    granular pair once): a granular ``j`` after ``k``, or any wall or leg particle."""
+    return KND[j] != SOIL or j > k
+
+
+@_source
+def _build_list(k, xi, zi, cx, cz, X, Z, KND, half, rlist, ncx, ncz, cell_start, vj, vn):
+    """Column ``k``'s Verlet list from the cells around (cx, cz): the columns within
+    ``rlist`` of (xi, zi) (only those :func:`_wanted` if ``half``) to vj[k], their count to
+    vn[k] (-1 if more than vj's width)."""
+    rl2 = rlist * rlist
+    maxn = vj.shape[1]
+    cnt = 0
+    for dz in range(-REACH, REACH + 1):
+        lo, hi = _row_span(cx, cz, dz, ncx, ncz, cell_start)
+        for j in range(lo, hi):
+            if half and not _wanted(k, j, KND):
+                continue
+            rx = xi - X[j]
+            rz = zi - Z[j]
+            if rx * rx + rz * rz < rl2:
+                if cnt < maxn:
+                    vj[k, cnt] = j
+                cnt += 1
+    vn[k] = cnt if cnt <= maxn else -1
+
+
+@_source
 def _strain_stress_one(k, X, Z, VX, VZ, VOL, RHO, NOX, NOZ, KND, DCL, cell_index, cell_start,
                        rho, sxx, szz, sxz, syy, vj, vn, nbj, nbw, nbn, par):
     """Column ``k`` (cell order) of :func:`strain_stress`: the velocity gradient and new
@@ -380,20 +409,8 @@ def _strain_stress_one(k, X, Z, VX, VZ, VOL, RHO, NOX, NOZ, KND, DCL, cell_index
     vxi = VX[k]
     vzi = VZ[k]
     cx, cz = _cell_xz(xi, zi, xmin, zmin, inv_cell, ncx, ncz)
-    maxn = vj.shape[1]
     if build:
-        rl2 = rlist * rlist
-        cnt = 0
-        for dz in range(-REACH, REACH + 1):
-            lo, hi = _row_span(cx, cz, dz, ncx, ncz, cell_start)
-            for j in range(lo, hi):
-                rx = xi - X[j]
-                rz = zi - Z[j]
-                if rx * rx + rz * rz < rl2:
-                    if cnt < maxn:
-                        vj[k, cnt] = j
-                    cnt += 1
-        vn[k] = cnt if cnt <= maxn else -1
+        _build_list(k, xi, zi, cx, cz, X, Z, KND, False, rlist, ncx, ncz, cell_start, vj, vn)
     acc = (0.0, 0.0, 0.0, 0.0, 0.0)
     cnt = vn[k]
     nbn[k] = -1
@@ -622,13 +639,6 @@ def neighbour_list(n: int, hdx: float):
 # do not depend on the number of threads.
 
 @numba.njit(inline="always", fastmath=True)
-def _wanted(k, j, KND):
-    """Whether column ``j`` belongs in granular column ``k``'s half list: a granular ``j``
-    after ``k``, or any wall or leg particle."""
-    return KND[j] != SOIL or j > k
-
-
-@numba.njit(inline="always", fastmath=True)
 def _strain_half_pair(k, j, fdw, X, Z, VX, VZ, VOL, RHO, KND, buf, acc):
     """Pass 1 terms of the pair (k, j) (fdw != 0): returns k's updated sums (d rho, Lxx, Lxz,
     Lzx, Lzz); a granular j's go to buf[j] (see :func:`_strain_terms`)."""
@@ -664,21 +674,8 @@ def _strain_half_one(k, X, Z, VX, VZ, VOL, RHO, NOX, NOZ, KND, DCL, cell_start, 
     xi = X[k]
     zi = Z[k]
     cx, cz = _cell_xz(xi, zi, xmin, zmin, inv_cell, ncx, ncz)
-    maxn = vj.shape[1]
     if build:
-        rl2 = rlist * rlist
-        cnt = 0
-        for dz in range(-REACH, REACH + 1):
-            lo, hi = _row_span(cx, cz, dz, ncx, ncz, cell_start)
-            for j in range(lo, hi):
-                if _wanted(k, j, KND):
-                    rx = xi - X[j]
-                    rz = zi - Z[j]
-                    if rx * rx + rz * rz < rl2:
-                        if cnt < maxn:
-                            vj[k, cnt] = j
-                        cnt += 1
-        vn[k] = cnt if cnt <= maxn else -1
+        _build_list(k, xi, zi, cx, cz, X, Z, KND, True, rlist, ncx, ncz, cell_start, vj, vn)
     acc = (0.0, 0.0, 0.0, 0.0, 0.0)
     cnt = vn[k]
     nbn[k] = -1
