@@ -179,10 +179,6 @@ class RigidBody:
         f = (t - tt[k]) / (tt[k + 1] - tt[k])
         return (tab[:, k] + f * (tab[:, k + 1] - tab[:, k])).T
 
-    def pose(self, t_traj: float):
-        """The row of :meth:`poses` at one time, as a tuple."""
-        return tuple(self.poses([t_traj])[0].tolist())
-
 
 @dataclass
 class Scene:
@@ -301,28 +297,6 @@ class Solver:
         self.cell_index = np.zeros(self.n, np.int64)
 
     # ----------------------------------------------------------------------------------- step
-    @property
-    def settling(self) -> bool:
-        return self.t < self.settle_time
-
-    def pose(self):
-        """The leg's pose now (hip x, z, vx, vz, ax, az, angle, omega, alpha; see
-        :meth:`RigidBody.pose`), or None without a leg."""
-        leg = self.scene.leg
-        if leg is None:
-            return None
-        if self.settling:  # the leg waits at its start pose
-            hx, hz, _, _, _, _, ang, _, _ = leg.pose(leg.t0)
-            return (hx, hz, 0.0, 0.0, 0.0, 0.0, ang, 0.0, 0.0)
-        return leg.pose(leg.t0 + self.t - self.settle_time)
-
-    def place_leg(self):
-        """Place the leg's particles at its pose now; returns the pose (None without a leg)."""
-        pose = self.pose()
-        if pose is not None:
-            self._backend.place(pose)
-        return pose
-
     def step(self):
         """One time step; returns (Fx, Fz, torque) on the leg per unit depth (N/m, N) at the
         start of the step."""
@@ -481,12 +455,6 @@ class CPUBackend:
     def builds(self) -> int:
         """Verlet-list builds so far."""
         return int(self.ip[K.IP.index("builds")])
-
-    def place(self, pose) -> None:
-        s = self.s
-        leg = s.scene.leg
-        K.place_rigid(s.x, s.z, s.vx, s.vz, s.acc_x, s.acc_z, s.nox, s.noz, s.lidx, leg.bx,
-                      leg.bz, leg.bnx, leg.bnz, *pose)
 
     def steps(self, poses, dampings, forces):
         """Advance len(poses) steps (see :func:`~.kernels.cpu_steps`); returns (steps done,
