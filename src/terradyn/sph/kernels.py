@@ -309,6 +309,13 @@ def _regather_one(k, cell_index, vx, vz, gvx, gvz, rho, mass, kind, sxx, szz, sx
 
 
 @_source
+def _support(h):
+    """(squared support radius (2h)^2, the factor of :func:`wendland_dw`'s -35 / (4 pi h^4),
+    1 / h): the constants of the pair loops' kernel-gradient factor (:func:`_pair_fdw`)."""
+    return 4.0 * h * h, -5.0 * _W2D / (h * h * h * h), 1.0 / h
+
+
+@_source
 def _pair_fdw(j, rx, rz, KND, NOX, NOZ, DCL, sup2, inv_h, dwc):
     """Kernel-gradient factor of granular particle i and column j (grad_i W = fdw r_ij, r_ij
     = (rx, rz) = x_i - x_j): 0 outside the support or when j is a leg particle on the other
@@ -399,10 +406,7 @@ def _strain_stress_one(k, X, Z, VX, VZ, VOL, RHO, NOX, NOZ, KND, DCL, cell_index
         return
     (h, xmin, zmin, inv_cell, ncx, ncz, dt, shear_mod, bulk_mod, alpha_phi, k_c, rho_min,
      rho_max, rlist, build) = par
-    h2 = h * h
-    sup2 = 4.0 * h2
-    dwc = -5.0 * _W2D / (h2 * h2)
-    inv_h = 1.0 / h
+    sup2, dwc, inv_h = _support(h)
     i = cell_index[k]
     xi = X[k]
     zi = Z[k]
@@ -553,9 +557,7 @@ def _accel_kick_one(k, X, Z, VX, VZ, PXX, PZZ, PXZ, VOL, RHO, NOX, NOZ, KND, DCL
     if KND[k] != SOIL:
         return 0
     h = par[0]
-    sup2 = 4.0 * h * h
-    dwc = -5.0 * _W2D / (h * h * h * h)
-    inv_h = 1.0 / h
+    sup2, dwc, inv_h = _support(h)
     i = cell_index[k]
     pp = _accel_pp(k, X, Z, VX, VZ, PXX, PZZ, PXZ, RHO, mass[i], par)
     xi = X[k]
@@ -668,9 +670,7 @@ def _strain_half_one(k, X, Z, VX, VZ, VOL, RHO, NOX, NOZ, KND, DCL, cell_start, 
     if KND[k] != SOIL:
         return
     h, xmin, zmin, inv_cell, ncx, ncz, rlist, build = par
-    sup2 = 4.0 * h * h
-    dwc = -5.0 * _W2D / (h * h * h * h)
-    inv_h = 1.0 / h
+    sup2, dwc, inv_h = _support(h)
     xi = X[k]
     zi = Z[k]
     cx, cz = _cell_xz(xi, zi, xmin, zmin, inv_cell, ncx, ncz)
@@ -735,9 +735,7 @@ def _accel_half_one(k, X, Z, VX, VZ, PXX, PZZ, PXZ, VOL, RHO, NOX, NOZ, KND, DCL
     if KND[k] != SOIL:
         return
     h = par[0]
-    sup2 = 4.0 * h * h
-    dwc = -5.0 * _W2D / (h * h * h * h)
-    inv_h = 1.0 / h
+    sup2, dwc, inv_h = _support(h)
     i = cell_index[k]
     pp = _accel_pp(k, X, Z, VX, VZ, PXX, PZZ, PXZ, RHO, mass[i], par)
     xi = X[k]
