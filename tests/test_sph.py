@@ -385,8 +385,9 @@ def test_advance_runs_the_steps_of_step_in_blocks_bitwise():
     assert np.array_equal(a.x, b.x) and np.array_equal(a.sxx, b.sxx)
     assert a.t == b.t and a.step_count == b.step_count == n and tb[0] == 0.0
     assert np.all(np.diff(tb) > 0) and len(tb) == n
-    with pytest.raises(InputError, match="nsteps"):
-        b.advance(0)
+    for bad in (0, 2.5, float("nan"), "ten"):
+        with pytest.raises(InputError, match="nsteps"):
+            b.advance(bad)
     b.szz[int(b.sidx[5])] = np.nan
     with pytest.raises(SPHInstabilityError) as e:
         b.advance(10)

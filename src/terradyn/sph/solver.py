@@ -310,9 +310,7 @@ class Solver:
         returning to Python (blocks end where grains thrown out of the container are
         dropped, every 50 steps): much faster than calling :meth:`step` in a loop for small
         beds."""
-        nsteps = int(nsteps)
-        if nsteps < 1:
-            raise InputError("nsteps", f"must be >= 1, got {nsteps}")
+        nsteps = integer("nsteps", nsteps, 1)
         parts = []
         done = 0
         while done < nsteps:
