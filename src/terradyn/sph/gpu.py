@@ -73,6 +73,7 @@ _regather_one = _D["_regather_one"]
 _strain_stress_one = _D["_strain_stress_one"]
 _accel_kick_one = _D["_accel_kick_one"]
 _place_one = _D["_place_one"]
+_side_one = _D["_side_one"]
 SOIL, LOST = K.SOIL, K.LOST
 
 
@@ -242,6 +243,12 @@ def _k_place(S, lidx, body, c, s, hip_x, hip_z, hip_vx, hip_vz, hip_ax, hip_az, 
 
 
 @cuda.jit
+def _k_sides(S, kind, cl, hip_x, hip_z, c, s, box, reach2):
+    for i in range(cuda.grid(1), kind.shape[0], cuda.gridsize(1)):
+        _side_one(i, S[X], S[Z], kind, S[DCL], cl, hip_x, hip_z, c, s, box, reach2)
+
+
+@cuda.jit
 def _k_boundary(S, kind, bidx, grav, grid, cell_start, cell_index, noslip, bj, bn, build):
     for kk in range(cuda.grid(1), bidx.shape[0], cuda.gridsize(1)):
         _boundary_one(kk, S[X], S[Z], S[VX], S[VZ], S[RHO], kind, S[NOX], S[NOZ], S[DCL],
@@ -377,6 +384,9 @@ class GPUBackend:
             self.lidx = cuda.to_device(s.lidx.astype(np.int32))
             self.body = cuda.to_device(np.ascontiguousarray(
                 np.stack([leg.bx, leg.bz, leg.bnx, leg.bnz]), dtype=np.float64))
+        if s.sides:
+            self.cl = cuda.to_device(np.ascontiguousarray(leg.centre, dtype=np.float64))
+            self.clbox = cuda.to_device(leg.side_box(s.side_reach))
         self.upload(vars(s))  # the solver detaches its copies once this returns
 
     # ---------------------------------------------------------------------- host <-> device
@@ -418,6 +428,10 @@ class GPUBackend:
         _k_place[_blocks(self.nleg), TPB](self.S, self.lidx, self.body, math.cos(ang),
                                           math.sin(ang), hip_x, hip_z, hip_vx, hip_vz, hip_ax,
                                           hip_az, omega, alpha)
+        if self.s.sides:
+            _k_sides[_blocks(self.n), TPB](self.S, self.kind, self.cl, hip_x, hip_z,
+                                           math.cos(ang), math.sin(ang), self.clbox,
+                                           float(self.s.side_reach ** 2))
 
     def _boundaries(self, grav, grid, noslip, build):
         if self.nbnd:

@@ -316,14 +316,19 @@ def _support(h):
 
 
 @_source
-def _pair_fdw(j, rx, rz, KND, NOX, NOZ, DCL, sup2, inv_h, dwc):
+def _pair_fdw(j, rx, rz, KND, NOX, NOZ, DCL, sup2, inv_h, dwc, si):
     """Kernel-gradient factor of granular particle i and column j (grad_i W = fdw r_ij, r_ij
-    = (rx, rz) = x_i - x_j): 0 outside the support or when j is a leg particle on the other
-    side of the (thin) leg, else negative. Written without branches: the compiler turns the
-    branching form into code an order of magnitude slower (benchmarks/bench_sph.py)."""
+    = (rx, rz) = x_i - x_j): 0 outside the support, when j is a leg particle on the other
+    side of the (thin) leg, or when j is granular and the two lie on opposite sides of the
+    leg (``si``, DCL[j]: the sides of i and j, +1 / -1 near the leg, 0 elsewhere; see
+    :func:`_side_one`: the body is not transparent to the material's own stress), else
+    negative. Written without branches: the compiler turns the branching form into code an
+    order of magnitude slower (benchmarks/bench_sph.py)."""
     r2 = rx * rx + rz * rz
     t = 1.0 - 0.5 * math.sqrt(r2) * inv_h
-    inside = (r2 < sup2) and (KND[j] != LEG or rx * NOX[j] + rz * NOZ[j] + DCL[j] > 0.0)
+    knd = KND[j]
+    inside = ((r2 < sup2) and (knd != LEG or rx * NOX[j] + rz * NOZ[j] + DCL[j] > 0.0)
+              and (knd != SOIL or si * DCL[j] >= 0.0))
     return dwc * t * t * t if inside else 0.0
 
 
@@ -340,14 +345,14 @@ def _strain_terms(rx, rz, dvx, dvz, fdw):
 
 @_source
 def _strain_pair(j, xi, zi, vxi, vzi, X, Z, VX, VZ, VOL, RHO, NOX, NOZ, KND, DCL, sup2, inv_h,
-                 dwc, acc):
+                 dwc, si, acc):
     """Column ``j`` as a neighbour of :func:`_strain_stress_one`'s particle: returns (fdw,
     running sums (d rho, Lxx, Lxz, Lzx, Lzz)); fdw = 0 (and no contribution) outside the
     support or on the other side of the leg, else the kernel-gradient factor
     (grad W = fdw r_ij)."""
     rx = xi - X[j]
     rz = zi - Z[j]
-    fdw = _pair_fdw(j, rx, rz, KND, NOX, NOZ, DCL, sup2, inv_h, dwc)
+    fdw = _pair_fdw(j, rx, rz, KND, NOX, NOZ, DCL, sup2, inv_h, dwc, si)
     if fdw == 0.0:
         return 0.0, acc
     dvg, txx, txz, tzx, tzz = _strain_terms(rx, rz, vxi - VX[j], vzi - VZ[j], fdw)
@@ -423,7 +428,7 @@ def _strain_stress_one(k, X, Z, VX, VZ, VOL, RHO, NOX, NOZ, KND, DCL, cell_index
         for n in range(cnt):
             j = vj[k, n]
             fdw, acc = _strain_pair(j, xi, zi, vxi, vzi, X, Z, VX, VZ, VOL, RHO, NOX, NOZ, KND,
-                                    DCL, sup2, inv_h, dwc, acc)
+                                    DCL, sup2, inv_h, dwc, DCL[k], acc)
             if fdw != 0.0:
                 nbj[k, m] = j
                 nbw[k, m] = fdw
@@ -434,7 +439,7 @@ def _strain_stress_one(k, X, Z, VX, VZ, VOL, RHO, NOX, NOZ, KND, DCL, cell_index
             lo, hi = _row_span(cx, cz, dz, ncx, ncz, cell_start)
             for j in range(lo, hi):
                 fdw, acc = _strain_pair(j, xi, zi, vxi, vzi, X, Z, VX, VZ, VOL, RHO, NOX, NOZ,
-                                        KND, DCL, sup2, inv_h, dwc, acc)
+                                        KND, DCL, sup2, inv_h, dwc, DCL[k], acc)
     dr, gxx, gxz, gzx, gzz = acc
     rho[i], sxx[i], szz[i], sxz[i], syy[i] = dp_update(
         rho[i], dr, gxx, gxz, gzx, gzz, sxx[i], szz[i], sxz[i], syy[i], dt, shear_mod,
@@ -574,7 +579,7 @@ def _accel_kick_one(k, X, Z, VX, VZ, PXX, PZZ, PXZ, VOL, RHO, NOX, NOZ, KND, DCL
         for dz in range(-REACH, REACH + 1):
             lo, hi = _row_span(cx, cz, dz, par[4], par[5], cell_start)
             for j in range(lo, hi):
-                fdw = _pair_fdw(j, xi - X[j], zi - Z[j], KND, NOX, NOZ, DCL, sup2, inv_h, dwc)
+                fdw = _pair_fdw(j, xi - X[j], zi - Z[j], KND, NOX, NOZ, DCL, sup2, inv_h, dwc, DCL[k])
                 if fdw != 0.0:
                     acc = _accel_pair(j, fdw, X, Z, VX, VZ, PXX, PZZ, PXZ, VOL, RHO, NOX, NOZ,
                                       KND, DCL, GRD, pp, acc)
@@ -610,6 +615,49 @@ def _place_one(kk, c, s, x, z, vx, vz, acc_x, acc_z, nox, noz, lidx, bx, bz, bnx
     acc_z[w] = hip_az - alpha * rx - omega * omega * rz
     nox[w] = c * bnx[kk] + s * bnz[kk]
     noz[w] = -s * bnx[kk] + c * bnz[kk]
+
+
+@_source
+def _side_one(i, x, z, kind, dcl, cl, hip_x, hip_z, c, s, box, reach2):
+    """Which side of the leg granular particle ``i`` is on, written to dcl[i] (its slot of
+    the per-particle offset array, unused by granular particles): +1 / -1 where it lies
+    within ``reach2`` (squared distance) of the leg's centre line ``cl`` ((2, m) body-frame
+    polyline from hip to tip) and beside it (its foot point is not past either end), on the
+    side of the body normal (-t_z, t_x) or the other; 0 elsewhere. ``box`` = (x0, x1, z0,
+    z1): the polyline's body-frame bounding box grown by the reach (a cheap reject).
+    :func:`_pair_fdw` drops granular pairs whose sides differ: a body thinner than the
+    kernel support would otherwise pass stress straight through itself."""
+    if kind[i] != SOIL:
+        return
+    dx = x[i] - hip_x
+    dz = z[i] - hip_z
+    bx = c * dx - s * dz  # into the body frame (the inverse of _place_one's rotation)
+    bz = s * dx + c * dz
+    side = 0.0
+    if box[0] <= bx <= box[1] and box[2] <= bz <= box[3]:
+        m = cl.shape[1]
+        best = reach2
+        for k in range(m - 1):
+            tx = cl[0, k + 1] - cl[0, k]
+            tz = cl[1, k + 1] - cl[1, k]
+            rx = bx - cl[0, k]
+            rz = bz - cl[1, k]
+            ll = tx * tx + tz * tz
+            u = (rx * tx + rz * tz) / ll
+            past = (k == 0 and u < 0.0) or (k == m - 2 and u > 1.0)
+            u = min(max(u, 0.0), 1.0)
+            ex = rx - u * tx
+            ez = rz - u * tz
+            d2 = ex * ex + ez * ez
+            if d2 < best:
+                best = d2
+                if past:
+                    side = 0.0
+                elif rz * tx - rx * tz > 0.0:  # r . (-t_z, t_x)
+                    side = 1.0
+                else:
+                    side = -1.0
+    dcl[i] = side
 
 
 #: Verlet-list skin as a fraction of h: lists hold the particles within 2h + SKIN h and are
@@ -683,7 +731,7 @@ def _strain_half_one(k, X, Z, VX, VZ, VOL, RHO, NOX, NOZ, KND, DCL, cell_start, 
         m = 0
         for n in range(cnt):
             j = vj[k, n]
-            fdw = _pair_fdw(j, xi - X[j], zi - Z[j], KND, NOX, NOZ, DCL, sup2, inv_h, dwc)
+            fdw = _pair_fdw(j, xi - X[j], zi - Z[j], KND, NOX, NOZ, DCL, sup2, inv_h, dwc, DCL[k])
             if fdw != 0.0:
                 acc = _strain_half_pair(k, j, fdw, X, Z, VX, VZ, VOL, RHO, KND, buf, acc)
                 nbj[k, m] = j
@@ -696,7 +744,7 @@ def _strain_half_one(k, X, Z, VX, VZ, VOL, RHO, NOX, NOZ, KND, DCL, cell_start, 
             for j in range(lo, hi):
                 if _wanted(k, j, KND):
                     fdw = _pair_fdw(j, xi - X[j], zi - Z[j], KND, NOX, NOZ, DCL, sup2, inv_h,
-                                    dwc)
+                                    dwc, DCL[k])
                     if fdw != 0.0:
                         acc = _strain_half_pair(k, j, fdw, X, Z, VX, VZ, VOL, RHO, KND, buf,
                                                 acc)
@@ -753,7 +801,7 @@ def _accel_half_one(k, X, Z, VX, VZ, PXX, PZZ, PXZ, VOL, RHO, NOX, NOZ, KND, DCL
             for j in range(lo, hi):
                 if _wanted(k, j, KND):
                     fdw = _pair_fdw(j, xi - X[j], zi - Z[j], KND, NOX, NOZ, DCL, sup2, inv_h,
-                                    dwc)
+                                    dwc, DCL[k])
                     if fdw != 0.0:
                         acc = _accel_half_pair(k, j, fdw, X, Z, VX, VZ, PXX, PZZ, PXZ, VOL,
                                                RHO, NOX, NOZ, KND, DCL, GRD, pp, buf, acc)
@@ -1035,6 +1083,15 @@ def place_rigid(x, z, vx, vz, acc_x, acc_z, nox, noz, lidx, bx, bz, bnx, bnz,
                    hip_x, hip_z, hip_vx, hip_vz, hip_ax, hip_az, omega, alpha)
 
 
+@numba.njit(parallel=True, fastmath=True, cache=True)
+def leg_sides(x, z, kind, dcl, cl, hip_x, hip_z, ang, box, reach2):
+    """:func:`_side_one` for every particle (the leg at angle ``ang`` about the hip)."""
+    c = math.cos(ang)
+    s = math.sin(ang)
+    for i in prange(x.shape[0]):
+        _side_one(i, x, z, kind, dcl, cl, hip_x, hip_z, c, s, box, reach2)
+
+
 def warmup():
     """Compile every kernel on a tiny problem (for benchmarks: keeps JIT out of timings)."""
     from .solver import warmup as _w
@@ -1046,17 +1103,17 @@ def warmup():
 #: Scalars of :func:`cpu_steps` (float array ``fp``), by index.
 FP = ("h", "xmin", "zmin", "inv_cell", "gx", "gz", "dt", "shear_mod", "bulk_mod", "alpha_phi",
       "k_c", "rho_min", "rho_max", "c0", "av_alpha", "av_beta", "half_t", "gap", "max_push",
-      "vmax_allowed")
+      "vmax_allowed", "side_reach2")
 #: Integers of :func:`cpu_steps` (int64 array ``ip``): grid size, flags, and two counters it
 #: updates: the pair chunks and the list builds so far.
-IP = ("ncx", "ncz", "noslip", "av_boundary", "has_leg", "nchunk", "builds")
+IP = ("ncx", "ncz", "noslip", "av_boundary", "has_leg", "nchunk", "builds", "sides")
 
 
 @numba.njit(cache=True)
 def cpu_steps(poses, dampings, forces, x, z, vx, vz, rho, sxx, szz, sxz, syy, gvx, gvz, acc_x,
               acc_z, nox, noz, dcl, guard, mass, kind, fleg, bad, srt, srtk, cell_start,
               cell_index, bidx, lidx, body, xb, zb, vj, vn, nbj, nbw, nbn, bj, bn, buf, cont,
-              bounds, fp, ip):
+              bounds, fp, ip, cl, clbox):
     """Advance ``len(poses)`` steps in one call (no Python between steps): per step, place
     the leg at poses[s] = (hip x, z, vx, vz, ax, az, angle, omega, alpha) (if ip has_leg;
     body = its body coordinates and normals (4, n_leg)), rebuild the Verlet lists if a
@@ -1065,9 +1122,10 @@ def cpu_steps(poses, dampings, forces, x, z, vx, vz, rho, sxx, szz, sxz, syy, gv
     unit depth. Stops after a step in which a particle went unstable. Returns (steps done
     without instability, unstable particles in the last step)."""
     (h, xmin, zmin, inv_cell, gx, gz, dt, shear_mod, bulk_mod, alpha_phi, k_c, rho_min,
-     rho_max, c0, av_alpha, av_beta, half_t, gap, max_push, vmax_allowed) = (
+     rho_max, c0, av_alpha, av_beta, half_t, gap, max_push, vmax_allowed, side_reach2) = (
         fp[0], fp[1], fp[2], fp[3], fp[4], fp[5], fp[6], fp[7], fp[8], fp[9], fp[10], fp[11],
-        fp[12], fp[13], fp[14], fp[15], fp[16], fp[17], fp[18], fp[19])
+        fp[12], fp[13], fp[14], fp[15], fp[16], fp[17], fp[18], fp[19], fp[20])
+    sides = ip[7] != 0
     ncx = ip[0]
     ncz = ip[1]
     noslip = ip[2] != 0
@@ -1082,6 +1140,8 @@ def cpu_steps(poses, dampings, forces, x, z, vx, vz, rho, sxx, szz, sxz, syy, gv
         if has_leg:
             place_rigid(x, z, vx, vz, acc_x, acc_z, nox, noz, lidx, body[0], body[1], body[2],
                         body[3], hip_x, hip_z, hip_vx, hip_vz, hip_ax, hip_az, ang, omega, alpha)
+            if sides:
+                leg_sides(x, z, kind, dcl, cl, hip_x, hip_z, ang, clbox, side_reach2)
         build = max_displacement2(x, z, xb, zb) > thr
         if build:
             bin_particles(x, z, xmin, zmin, inv_cell, ncx, ncz, cell_start, cell_index)

@@ -144,6 +144,15 @@ def _centre_line(leg: Leg, dx: float):
     return P, T, L
 
 
+def centre_polyline(leg: Leg, dx: float) -> np.ndarray:
+    """(2, m) body-frame centre line of the leg from hip to tip at spacing ~dx/2, ends
+    included (for the side test of :func:`terradyn.sph.kernels._side_one`)."""
+    P, T, L = _centre_line(leg, 0.5 * dx)
+    d = 0.5 * L / len(P)  # _centre_line gives mid-points: put the two ends back
+    P = np.concatenate([P[:1] - d * T[:1], P, P[-1:] + d * T[-1:]])
+    return np.ascontiguousarray(P.T)
+
+
 def leg_particles(leg: Leg, dx: float, thickness: float = LEG_THICKNESS, layers: int = 3):
     """Body-frame dummy particles of a thin rigid leg.
 
@@ -212,7 +221,7 @@ def leg_scene(leg: Leg, traj: Trajectory, i0: int, medium: str | GranularMateria
     p = _assemble([(sx, sz, SOIL), (wx, wz, WALL), (lx, lz, LEG)], mat, dx)
     _set_stress(p, mat, 0.0, "geostatic")
     body = RigidBody(bx, bz, bnx, bnz, dcl, traj, float(traj.time[i0]), float(leg.width),
-                     thickness, guard)
+                     thickness, guard, centre=centre_polyline(leg, dx))
     return Scene(p, mat, cfg, leg=body,
                  meta={"scene": "leg", "leg": leg.describe(), "bed_width_m": bed_width,
                        "bed_depth_m": bed_depth, "thickness_m": thickness, "i0": int(i0)},

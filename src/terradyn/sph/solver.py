@@ -28,6 +28,10 @@ from .materials import GranularMaterial
 
 #: SPHConfig.backend values.
 BACKENDS = ("cpu", "gpu", "auto")
+#: SPHConfig.boundary values: "resolved" (the leg's own thickness, material on its two sides
+#: kept apart, a contact guard at ``contact_gap`` dx, default 1/4) or "guard" (the model
+#: before issue 17: no side test, grains held max(dx/4, h - t/2) off the surface).
+BOUNDARIES = ("resolved", "guard")
 #: Solver arrays that the GPU backend keeps on the device between steps: on that backend they
 #: are detached from the solver while the device holds newer data, and reading one copies the
 #: whole state back (see :meth:`Solver.__getattr__`).
@@ -94,6 +98,8 @@ class SPHConfig:
     lowpass_hz: float | None = None
     threads: int | None = None
     backend: str = "cpu"
+    boundary: str = "resolved"
+    contact_gap: float | None = None
 
     def __post_init__(self):
         positive("dx", self.dx, "m")
@@ -106,6 +112,11 @@ class SPHConfig:
             in_range("settle-time", self.settle_time, 0.0, 100.0, "s")
         if self.lowpass_hz is not None:
             positive("lowpass", self.lowpass_hz, "Hz")
+        if self.boundary not in BOUNDARIES:
+            raise InputError("boundary", f"must be one of {', '.join(map(repr, BOUNDARIES))}, "
+                                         f"got {self.boundary!r}")
+        if self.contact_gap is not None:
+            in_range("contact-gap", self.contact_gap, 0.0, 1.0, "dx")
         if self.backend not in BACKENDS:
             raise InputError("backend", f"must be one of {', '.join(map(repr, BACKENDS))}, "
                                         f"got {self.backend!r}")
@@ -160,6 +171,13 @@ class RigidBody:
     width: float
     thickness: float = 0.0
     guard: np.ndarray | None = None  # (n,) 1 where the penetration guard applies (not the tip)
+    centre: np.ndarray | None = None  # (2, m) body-frame centre line, hip to tip (side test)
+
+    def side_box(self, reach: float) -> np.ndarray:
+        """(x0, x1, z0, z1): the centre line's body-frame bounding box grown by ``reach``."""
+        c = self.centre
+        return np.array([c[0].min() - reach, c[0].max() + reach, c[1].min() - reach,
+                         c[1].max() + reach])
 
     def poses(self, t_traj) -> np.ndarray:
         """(n, 9) rows (hip_x, hip_z, hip_vx, hip_vz, hip_ax, hip_az, angle, omega, alpha) at
@@ -232,10 +250,22 @@ class Solver:
         if scene.leg is not None:
             self.guard[self.lidx] = scene.leg.guard
             self.half_t = 0.5 * scene.leg.thickness
-        # Granular particles are kept `gap` off the leg's surface: at least dx/4, and far
-        # enough that particles on the two sides of a leg thinner than the kernel support
-        # (2h) never interact through it.
-        self.gap = max(0.25 * cfg.dx, cfg.h - self.half_t)
+        # Granular particles are kept `gap` off the leg's surface. "guard" (the old model):
+        # at least dx/4, and far enough that particles on the two sides of a leg thinner than
+        # the kernel support (2h) never interact through it. "resolved": the two sides are
+        # kept apart by the side test of kernels._side_one instead, and the guard is only a
+        # last-resort contact at contact_gap dx (default 1/4).
+        if cfg.boundary == "guard":
+            self.gap = (max(0.25 * cfg.dx, cfg.h - self.half_t) if cfg.contact_gap is None
+                        else cfg.contact_gap * cfg.dx)
+        else:
+            self.gap = (0.25 if cfg.contact_gap is None else cfg.contact_gap) * cfg.dx
+        self.sides = scene.leg is not None and cfg.boundary == "resolved"
+        if self.sides and scene.leg.centre is None:
+            raise InputError("scene", "the resolved boundary needs the leg's centre line "
+                                      "(RigidBody.centre)")
+        # pairs that may cross the leg: both particles within a support of its centre line
+        self.side_reach = 2.0 * cfg.h + self.half_t
         self.bad = np.zeros(n, np.int8)
         # the container: granular particles that leave it (thrown over a wall) are dropped
         if len(self.widx):
@@ -442,12 +472,18 @@ class CPUBackend:
                    alpha_phi=mat.alpha_phi, k_c=mat.k_c, rho_min=0.9 * mat.density,
                    rho_max=1.1 * mat.density, c0=s.c0, av_alpha=cfg.av_alpha,
                    av_beta=cfg.av_beta, half_t=s.half_t, gap=s.gap, max_push=0.1 * cfg.dx,
-                   vmax_allowed=s.vmax_allowed)
+                   vmax_allowed=s.vmax_allowed, side_reach2=s.side_reach ** 2)
         self.fp = np.array([val[k] for k in K.FP], dtype=np.float64)
         ival = dict(ncx=s.ncx, ncz=s.ncz, noslip=int(bool(cfg.noslip)),
                     av_boundary=int(bool(cfg.av_boundary)), has_leg=int(leg is not None),
-                    nchunk=1, builds=0)
+                    nchunk=1, builds=0, sides=int(s.sides))
         self.ip = np.array([ival[k] for k in K.IP], dtype=np.int64)
+        if s.sides:
+            self.cl = np.ascontiguousarray(leg.centre, dtype=np.float64)
+            self.clbox = leg.side_box(s.side_reach)
+        else:
+            self.cl = np.zeros((2, 2))
+            self.clbox = np.zeros(4)
 
     @property
     def builds(self) -> int:
@@ -463,7 +499,7 @@ class CPUBackend:
             s.gvx, s.gvz, s.acc_x, s.acc_z, s.nox, s.noz, s.dcl, s.guard, s.mass, s.kind, s.fleg,
             s.bad, s._srt, s._srtk, s.cell_start, s.cell_index, self.bidx, s.lidx, self.body,
             self.xb, self.zb, *self.nb, self.bj, self.bn, self.buf, self.cont, self.bounds,
-            self.fp, self.ip)
+            self.fp, self.ip, self.cl, self.clbox)
         return int(done), int(nbad)
 
     def drop_lost(self, box) -> int:
