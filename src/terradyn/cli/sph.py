@@ -220,4 +220,7 @@ def legs_cmd(omega: list[float] = typer.Option([0.2], help="Angular speeds, rad/
 
 
 def register(app: typer.Typer) -> None:
+    from . import sph_validate
+
+    sph_validate.register(sph_app)
     app.add_typer(sph_app, name="sph")

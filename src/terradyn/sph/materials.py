@@ -100,17 +100,37 @@ NUMERICAL_E = 2.5e5
 
 
 def from_medium(medium: str, youngs: float = NUMERICAL_E, poisson: float = 0.3,
-                friction_deg: float | None = None) -> GranularMaterial:
-    """The SPH material for a medium of :data:`terradyn.media.MEDIA` (Li 2013 Table S1)."""
+                friction_deg: float | None = None, friction: str = "calibrated") -> GranularMaterial:
+    """The SPH material for a medium of :data:`terradyn.media.MEDIA` (Li 2013 Table S1).
+
+    ``friction``: "calibrated" (default: the effective plane-strain friction angle at which
+    the SPH plate test reproduces the medium's measured alpha_z(0, pi/2), Li 2013 Table S3;
+    shipped in ``terradyn/data/sph_calibration.json``, made by ``terradyn sph calibrate``;
+    see :mod:`terradyn.sph.calibration`) or "repose" (the angle of repose, Table S1: the model
+    before issue 17). ``friction_deg`` overrides both."""
+    from .calibration import shipped
+
     choice("medium", medium, list(MEDIA))
+    choice("friction", friction, ["calibrated", "repose"])
     m = MEDIA[medium]
-    phi = m.repose_angle if friction_deg is None else in_range("friction", friction_deg, 0, 80, "deg") * DEG
+    cal = shipped().get(medium) if friction == "calibrated" else None
+    if friction_deg is not None:
+        phi = in_range("friction", friction_deg, 0, 80, "deg") * DEG
+        src = "user"
+    elif cal is not None:
+        phi = cal["friction_deg"] * DEG
+        src = (f"calibrated: the SPH plate test (dx = {cal['dx_m'] * 1e3:g} mm) reproduces the "
+               f"measured alpha_z(0, pi/2) = {cal['alpha_z_measured_N_per_cm3']:g} N/cm^3 "
+               f"({LI2013}, Table S3) within {abs(cal['relative_difference']) * 100:.1f} %; "
+               "terradyn sph calibrate")
+    else:
+        phi = m.repose_angle
+        src = f"angle of repose, {LI2013}, Table S1"
     return GranularMaterial(
         name=medium, density=m.bulk_density, youngs=youngs, poisson=poisson, friction=phi,
         sources={
             "density": f"grain density x volume fraction, {LI2013}, Table S1",
-            "friction": (f"angle of repose, {LI2013}, Table S1" if friction_deg is None
-                         else "user / calibration"),
+            "friction": src,
             "poisson": BUI2008,
             "youngs": "numerical stiffness (see terradyn.sph.materials docstring)",
             "cohesion": "0: dry cohesionless grains",
@@ -121,6 +141,23 @@ def from_medium(medium: str, youngs: float = NUMERICAL_E, poisson: float = 0.3,
 
 #: Material presets by medium name (the five media of Li 2013).
 MATERIALS: dict[str, GranularMaterial] = {name: from_medium(name) for name in MEDIA}
+
+
+def from_properties(name: str, density: float, friction_deg: float, *,
+                    youngs: float = NUMERICAL_E, poisson: float = 0.3,
+                    cohesion: float = 0.0) -> GranularMaterial:
+    """A user's medium from its measured properties (SI; friction in deg): bulk density
+    (grain density x volume fraction), friction angle (for the SPH's plane-strain model,
+    best the angle :func:`terradyn.sph.calibration.calibrate_friction` finds from one plate
+    test of the medium)."""
+    positive("density", density, "kg/m^3")
+    phi = in_range("friction", friction_deg, 0, 80, "deg") * DEG
+    return GranularMaterial(name=name, density=density, youngs=youngs, poisson=poisson,
+                            friction=phi, cohesion=cohesion,
+                            sources={"density": "user", "friction": "user",
+                                     "poisson": BUI2008,
+                                     "youngs": "numerical stiffness (see terradyn.sph.materials)",
+                                     "k0": f"Jaky 1 - sin(phi): {JAKY1944}"})
 
 
 def material(name_or_material: str | GranularMaterial) -> GranularMaterial:

@@ -1,0 +1,88 @@
+"""``terradyn sph calibrate`` and ``terradyn sph validate``: media from the plate test, and the
+model against measurements."""
+from __future__ import annotations
+
+import json
+from pathlib import Path
+from typing import Optional
+
+import typer
+
+
+def _atomic_json(path: Path, data) -> None:
+    from ..io import atomic_write_text
+
+    atomic_write_text(path, json.dumps(data, indent=1) + "\n")
+
+
+def calibrate_cmd(
+    medium: list[str] = typer.Option([], "--medium", help="Li 2013 medium to calibrate (repeat); none and no --density-kg-m3: all five."),
+    density_kg_m3: Optional[float] = typer.Option(None, help="A user's medium: bulk density, kg/m^3 (grain density x volume fraction)."),
+    alpha_z_n_cm3: Optional[float] = typer.Option(None, "--alpha-z-n-cm3", help="A user's medium: measured plate-test slope alpha_z(0, pi/2), N/cm^3."),
+    name: str = typer.Option("custom", help="A user's medium: its name in the output."),
+    friction_start_deg: float = typer.Option(30.0, help="A user's medium: first friction angle of the search, deg."),
+    dx_mm: float = typer.Option(4.0, "--dx-mm", help="Particle spacing of the plate test, mm (the resolution the medium will run at)."),
+    tol: float = typer.Option(0.03, help="Relative tolerance on the plate slope."),
+    out: Optional[Path] = typer.Option(None, "--out", "-o", help="Write the calibration JSON here [default: stdout]."),
+):
+    """Calibrate the SPH friction angle of a medium on its plate test (Li 2013 Table S3).
+
+    The plate is pushed straight down in the same 2D SPH set-up the model runs in; the
+    friction angle is searched until its stress-depth slope matches the measured one. Leg
+    forces are never used. The shipped calibration is `terradyn sph calibrate --dx-mm 4
+    -o src/terradyn/data/sph_calibration.json`.
+    """
+    import datetime
+    import platform
+
+    from .. import __version__
+    from ..errors import InputError, in_range, positive
+    from ..media import MEDIA
+    from ..sph.calibration import PLATE_TEST, calibrate_friction
+    from ..sph.materials import from_medium, from_properties
+    from ..units import N_PER_CM3
+    from . import err
+
+    dx = in_range("dx-mm", dx_mm, 1.0, 20.0, "mm") * 1e-3
+    if out is not None:
+        from ..io import check_output
+
+        check_output(out, (".json",), "out")
+    jobs = []
+    if density_kg_m3 is not None or alpha_z_n_cm3 is not None:
+        if medium:
+            raise InputError("medium", "give either --medium or a user's medium "
+                                       "(--density-kg-m3 and --alpha-z-n-cm3), not both")
+        if density_kg_m3 is None or alpha_z_n_cm3 is None:
+            raise InputError("density-kg-m3" if density_kg_m3 is None else "alpha-z-n-cm3",
+                             "a user's medium needs both --density-kg-m3 and --alpha-z-n-cm3")
+        positive("alpha-z-n-cm3", alpha_z_n_cm3, "N/cm^3")
+        in_range("friction-start-deg", friction_start_deg, 10, 60, "deg")
+        jobs.append((from_properties(name, density_kg_m3, friction_start_deg),
+                     alpha_z_n_cm3 * N_PER_CM3))
+    else:
+        for m in medium or list(MEDIA):
+            if m not in MEDIA or MEDIA[m].alpha_z_plate is None:
+                raise InputError("medium", f"unknown value {m!r}; allowed: "
+                                           + ", ".join(k for k in MEDIA if MEDIA[k].alpha_z_plate))
+            jobs.append((from_medium(m, friction="repose"), MEDIA[m].alpha_z_plate))
+    result = {"_meta": {"what": "SPH friction angles calibrated on the plate test (terradyn sph calibrate)",
+                        "plate_test": PLATE_TEST, "dx_m": dx, "terradyn_version": __version__,
+                        "created": datetime.datetime.now(datetime.timezone.utc).isoformat(timespec="seconds"),
+                        "machine": platform.platform()}}
+    for mat, target in jobs:
+        err(f"calibrating {mat.name}: measured alpha_z = {target / N_PER_CM3:g} N/cm^3")
+        cal = calibrate_friction(mat, target, dx=dx, tol=tol,
+                                 report=lambda p, a: err(f"  phi = {p:.2f} deg -> alpha_z = {a:.4f} N/cm^3"))
+        result[mat.name] = cal.describe() | {"density_kg_m3": mat.density}
+        if not cal.converged:
+            err(f"  not converged within {tol:.0%}: best phi = {cal.friction_deg:.2f} deg")
+    if out is None:
+        typer.echo(json.dumps(result, indent=1))
+    else:
+        _atomic_json(out, result)
+        err(f"wrote {out}")
+
+
+def register(sph_app: typer.Typer) -> None:
+    sph_app.command("calibrate")(calibrate_cmd)
