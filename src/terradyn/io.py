@@ -2,6 +2,7 @@
 from __future__ import annotations
 
 import io as _io
+import os
 import sys
 from pathlib import Path
 
@@ -14,11 +15,58 @@ from .series import coord_of, validate
 FORMATS = (".nc", ".zarr", ".csv")
 
 
-def _fmt(path: Path) -> str:
+def _fmt(path: Path, field: str = "out", formats: tuple[str, ...] = FORMATS) -> str:
     suf = path.suffix.lower()
-    if suf not in FORMATS:
-        raise InputError("out", f"unsupported file type {suf or '(none)'!r} for {path}; use one of {', '.join(FORMATS)}")
+    if suf not in formats:
+        raise InputError(field, f"unsupported file type {suf or '(none)'!r} for {path}; use one of {', '.join(formats)}")
     return suf
+
+
+def check_writable(path: str | Path, field: str = "out", directory: bool = False) -> Path:
+    """Raise :class:`InputError` on ``field`` unless ``path`` can be written (a file, or with
+    ``directory`` a folder such as a .zarr store), without creating anything: it must not be
+    a folder (a file, if ``directory``), and the nearest folder that exists on its way must be
+    writable (files are written to a temporary name there and renamed)."""
+    path = Path(path)
+    if path.exists():
+        if directory and not path.is_dir():
+            raise InputError(field, f"{path} exists and is not a directory")
+        if not directory and path.is_dir():
+            raise InputError(field, f"{path} is a directory; give a file name")
+        if not os.access(path, os.W_OK):
+            raise InputError(field, f"{path} is not writable")
+    anc = path.parent
+    while not anc.exists() and anc != anc.parent:
+        anc = anc.parent
+    if not anc.is_dir():
+        raise InputError(field, f"cannot create {path}: {anc} is not a directory")
+    if not os.access(anc, os.W_OK | os.X_OK):
+        raise InputError(field, f"cannot write {path}: directory {anc} is not writable")
+    return path
+
+
+def check_output(path: str | Path | None, field: str = "out",
+                 formats: tuple[str, ...] = FORMATS) -> None:
+    """Check an output path before any work: a known file type (``formats``, by suffix) in a
+    place that can be written. None and '-' (stdout) pass."""
+    if path is None or str(path) == "-":
+        return
+    path = Path(path)
+    suf = _fmt(path, field, formats)
+    check_writable(path, field, directory=suf == ".zarr")
+
+
+def plot_formats() -> tuple[str, ...]:
+    """File types that the figures can be saved as (matplotlib's, by suffix)."""
+    from matplotlib.backend_bases import FigureCanvasBase
+
+    return tuple(f".{k}" for k in FigureCanvasBase.get_supported_filetypes())
+
+
+def check_plot(path: str | Path | None, field: str = "plot") -> None:
+    """:func:`check_output` for a figure (.png, .pdf, .svg, ...)."""
+    if path is not None:
+        check_output(path, field, plot_formats())
 
 
 def to_csv_text(ds: xr.Dataset) -> str:

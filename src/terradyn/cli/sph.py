@@ -9,6 +9,7 @@ from typing import Optional
 
 import typer
 
+from ..errors import InputError, integer, positive
 from ..geometry import LEG_SHAPES
 
 Leg = Enum("Leg", {s: s for s in LEG_SHAPES}, type=str)
@@ -18,7 +19,10 @@ sph_app = typer.Typer(help="SPH (Drucker-Prager granular bed) forces and validat
                       no_args_is_help=True)
 
 _QUICK = typer.Option(False, "--quick", help="Coarse resolution (4 mm particles) for tests and previews.")
-_DX = typer.Option(None, "--dx-mm", help="Particle spacing, mm [default: 2.5; --quick 4].")
+#: Largest particle spacing the commands accept, mm (coarser beds hold too few particles).
+DX_MM_MAX = 10.0
+_DX = typer.Option(None, "--dx-mm", help=f"Particle spacing, mm, in (0, {DX_MM_MAX:g}] "
+                                         "[default: 2.5; --quick 4].")
 _BACKEND = typer.Option(Backend.cpu, "--backend",
                         help="Kernels: cpu (multi-threaded), gpu (NVIDIA, needs the 'gpu' extra) "
                              "or auto (the GPU when one is usable).")
@@ -27,19 +31,36 @@ _MEDIUM = typer.Option("3 mm glass CP", help="Medium (Li 2013 Table S1 name), e.
 
 @contextmanager
 def _progress(label: str):
-    """A rich progress bar on stderr; yields a callback(done_s, total_s)."""
+    """A rich progress bar on stderr; yields a callback(done_s, total_s). The bar appears at
+    the first report, so an error found before the work starts stays a one-line message."""
     from rich.console import Console
     from rich.progress import BarColumn, Progress, TextColumn, TimeElapsedColumn, TimeRemainingColumn
 
-    with Progress(TextColumn("{task.description}"), BarColumn(), TextColumn("{task.percentage:>5.1f}%"),
-                  TimeElapsedColumn(), TimeRemainingColumn(), console=Console(stderr=True),
-                  transient=False) as prog:
-        task = prog.add_task(label, total=1.0)
+    prog = Progress(TextColumn("{task.description}"), BarColumn(),
+                    TextColumn("{task.percentage:>5.1f}%"), TimeElapsedColumn(),
+                    TimeRemainingColumn(), console=Console(stderr=True), transient=False)
+    task = []
 
-        def cb(done, total):
-            prog.update(task, completed=done, total=total)
+    def cb(done, total):
+        if not task:
+            prog.start()
+            task.append(prog.add_task(label, total=1.0))
+        prog.update(task[0], completed=done, total=total)
 
+    try:
         yield cb
+    finally:
+        if task:
+            prog.stop()
+
+
+def _dx(dx_mm: float | None) -> float | None:
+    """--dx-mm in m (None: the command's default); 0, negative, NaN or too coarse: an error."""
+    if dx_mm is None:
+        return None
+    if not 0.0 < dx_mm <= DX_MM_MAX:  # NaN fails too
+        raise InputError("dx-mm", f"must be in (0, {DX_MM_MAX:g}] mm, got {dx_mm!r}")
+    return dx_mm * 1e-3
 
 
 def _config(quick: bool, dx_mm: float | None, cfl: float, lowpass_hz: float | None,
@@ -47,10 +68,18 @@ def _config(quick: bool, dx_mm: float | None, cfl: float, lowpass_hz: float | No
     from ..sph.api import default_config
     from ..sph.solver import resolve_backend
 
-    cfg = default_config(quick, dx=None if dx_mm is None else dx_mm * 1e-3, cfl=cfl,
-                         lowpass_hz=lowpass_hz, backend=backend)
+    cfg = default_config(quick, dx=_dx(dx_mm), cfl=cfl, lowpass_hz=lowpass_hz, backend=backend)
     resolve_backend(cfg.backend)  # --backend gpu without a GPU: fail before any work
     return cfg
+
+
+def _resumed(info: dict | None) -> None:
+    """Say that a run resumed from its checkpoint, and where (stderr)."""
+    if info:
+        from . import err
+
+        err(f"resumed from checkpoint {info['checkpoint']} at step {info['step']} "
+            f"(t = {info['time_s']:.6g} s of {info['total_s']:.6g} s)")
 
 
 def _unstable(e) -> None:
@@ -96,9 +125,16 @@ def run_cmd(
     from .. import io
     from ..api import leg_from_field_units, motion_from_field_units
     from ..sph import SPHInstabilityError, simulate, snapshots_dataset
+    from ..sph.solver import check_checkpoint
     from ..units import CM
     from . import err
 
+    # every input and output is checked before the (long) run
+    integer("snapshots", snapshots, 0)
+    io.check_output(out, "out")
+    io.check_plot(plot)
+    io.check_output(snapshots_out, "snapshots-out", (".nc",))
+    check_checkpoint(checkpoint)  # not ours: refused, never overwritten (the run's key: later)
     shape = leg_from_field_units(leg.value, leg_file, curvature, length_cm, width_cm)
     motion = motion_from_field_units(False, motion_file, omega, hip_height_cm, theta_start_deg,
                                      theta_end_deg, n_theta)
@@ -112,6 +148,7 @@ def run_cmd(
                                return_run=True, quick=quick)
     except SPHInstabilityError as e:
         _unstable(e)
+    _resumed(getattr(res, "resumed_from", None))
     io.emit(ds, out)
     if snapshots and snapshots_out is not None and res is not None:
         snapshots_dataset(res).to_netcdf(snapshots_out, engine="h5netcdf")
@@ -138,9 +175,11 @@ def bed_cmd(medium: str = _MEDIUM, quick: bool = _QUICK, dx_mm: Optional[float] 
             initial: str = typer.Option("zero", help="Initial stress: zero (settle under gravity) or geostatic."),
             plot: Optional[Path] = typer.Option(None, help="Figure of stress against depth.")):
     """Scene 1: a bed at rest; vertical and lateral stress against depth (JSON on stdout)."""
+    from .. import io
     from ..sph import plots, validation
 
-    dx = (dx_mm * 1e-3) if dx_mm else (5e-3 if quick else 2.5e-3)
+    dx = _dx(dx_mm) or (5e-3 if quick else 2.5e-3)
+    io.check_plot(plot)
     r = validation.bed_at_rest(medium, dx=dx, initial=initial, depth=0.06 if quick else 0.1)
     typer.echo(json.dumps({k: (v.tolist() if hasattr(v, "tolist") else v) for k, v in r.items()}))
     if plot:
@@ -152,9 +191,11 @@ def column_cmd(aspect: list[float] = typer.Option([0.5, 1.0, 2.0], help="Aspect 
                medium: str = _MEDIUM, quick: bool = _QUICK, dx_mm: Optional[float] = _DX,
                plot: Optional[Path] = typer.Option(None, help="Figure: deposits and run-out vs Lube et al. 2005.")):
     """Scene 2: collapse of 2D granular columns; run-out and final height vs Lube et al. (2005)."""
+    from .. import io
     from ..sph import plots, validation
 
-    dx = (dx_mm * 1e-3) if dx_mm else (4e-3 if quick else 2e-3)
+    dx = _dx(dx_mm) or (4e-3 if quick else 2e-3)
+    io.check_plot(plot)
     base = 0.06 if quick else 0.1
     rows = []
     with _progress("columns") as cb:
@@ -172,10 +213,14 @@ def plate_cmd(medium: str = _MEDIUM, quick: bool = _QUICK, dx_mm: Optional[float
               depth_cm: float = typer.Option(5.0, help="Final depth, cm."),
               plot: Optional[Path] = typer.Option(None, help="Figure: stress on the plate vs depth.")):
     """Scene 3: a horizontal plate pushed down; alpha_z(0, pi/2) against Li et al. (2013)."""
+    from .. import io
     from ..sph import plots, validation
     from ..sph.api import default_config
 
-    cfg = default_config(quick, dx=None if dx_mm is None else dx_mm * 1e-3)
+    positive("speed-cm-s", speed_cm_s, "cm/s")
+    positive("depth-cm", depth_cm, "cm")
+    io.check_plot(plot)
+    cfg = default_config(quick, dx=_dx(dx_mm))
     r = validation.plate_push(medium, speed=speed_cm_s * 1e-2, depth=depth_cm * 1e-2, config=cfg)
     typer.echo(json.dumps({"alpha_z_N_per_cm3": r["alpha_z"] / 1e6,
                            "alpha_z_measured_N_per_cm3": (r["alpha_z_measured"] or float("nan")) / 1e6,
@@ -197,24 +242,33 @@ def legs_cmd(omega: list[float] = typer.Option([0.2], help="Angular speeds, rad/
     from .. import io
     from ..geometry import make_leg
     from ..sph import SPHInstabilityError, plots, validation
+    from ..sph.solver import check_checkpoint
 
     cfg = _config(quick, dx_mm, 0.2, None, Backend(backend).value)
+    io.check_writable(outdir, "outdir", directory=True)
+    if checkpoint_dir is not None:
+        io.check_writable(checkpoint_dir, "checkpoint-dir", directory=True)
+    tags = [(name, w, f"{name}_w{w:g}") for name in legs for w in omega]
+    for name, _, tag in tags:
+        make_leg(name)  # an unknown leg: an error before the first run
+        if checkpoint_dir is not None:
+            check_checkpoint(checkpoint_dir / f"{tag}.npz")
     outdir.mkdir(parents=True, exist_ok=True)
     metrics = {}
-    for name in legs:
-        for w in omega:
-            tag = f"{name}_w{w:g}"
-            ck = checkpoint_dir / f"{tag}.npz" if checkpoint_dir else None
-            try:
-                with _progress(f"SPH {tag}") as cb:
-                    r = validation.rotating_leg(make_leg(name), w, medium, quick=quick, config=cfg,
-                                                n_theta=n_theta, progress=cb, checkpoint=ck)
-            except SPHInstabilityError as e:
-                _unstable(e)
-            io.write(r["sph"], outdir / f"sph_{tag}.nc")
-            metrics[tag] = r["metrics"]
-            plots.leg_comparison(r["sph"], r["rft"], outdir / f"sph_vs_rft_{tag}.png",
-                                 title=f"{name} leg, omega = {w:g} rad/s, {medium}")
+    for name, w, tag in tags:
+        ck = checkpoint_dir / f"{tag}.npz" if checkpoint_dir else None
+        try:
+            with _progress(f"SPH {tag}") as cb:
+                r = validation.rotating_leg(make_leg(name), w, medium, quick=quick, config=cfg,
+                                            n_theta=n_theta, progress=cb, checkpoint=ck)
+        except SPHInstabilityError as e:
+            _unstable(e)
+        _resumed(json.loads(r["sph"].attrs.get("input", "{}")).get("run", {})
+                 .get("resumed_from"))
+        io.write(r["sph"], outdir / f"sph_{tag}.nc")
+        metrics[tag] = r["metrics"]
+        plots.leg_comparison(r["sph"], r["rft"], outdir / f"sph_vs_rft_{tag}.png",
+                             title=f"{name} leg, omega = {w:g} rad/s, {medium}")
     (outdir / "metrics.json").write_text(json.dumps(metrics, indent=1))
     typer.echo(json.dumps(metrics, indent=1))
 

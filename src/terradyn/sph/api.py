@@ -21,7 +21,10 @@ QUICK_DX = 4.0e-3
 
 
 def default_config(quick: bool = False, **kw) -> SPHConfig:
-    return SPHConfig(dx=kw.pop("dx", None) or (QUICK_DX if quick else FULL_DX), **kw)
+    """:class:`SPHConfig` with the full (or ``quick``) resolution unless ``dx`` is given
+    (None: the default; 0 or less is an error, not the default)."""
+    dx = kw.pop("dx", None)
+    return SPHConfig(dx=(QUICK_DX if quick else FULL_DX) if dx is None else dx, **kw)
 
 
 def bed_extent(leg: Leg, traj, i0: int, i1: int, pad: float) -> tuple[float, float]:
@@ -89,6 +92,8 @@ def simulate(leg: Leg, motion: Rotation | PlanarMotion, medium: str | GranularMa
                 "particles": res.particles, "steps": res.steps, "dt_s": res.dt,
                 "wall_seconds": round(res.wall_seconds, 3), "lost_particles": int(res.lost),
                 "particle_steps_per_s": res.particles * res.steps / max(res.wall_seconds, 1e-9)}
+        if res.resumed_from is not None:
+            meta["resumed_from"] = res.resumed_from
     inputs = {"leg": leg.describe(), "motion": motion.describe(), "medium": mat.name,
               "material": mat.describe(), "sph": asdict(cfg) | {"quick": quick},
               "thickness_m": thickness, "run": meta}

@@ -428,15 +428,36 @@ class Solver:
 
     # ---------------------------------------------------------------------------- checkpoints
     def state_dict(self) -> dict:
+        """Everything a later step reads: the particle state, the kinds (grains dropped as
+        lost), the counters and, on the CPU backend, its neighbour search state (the cell
+        order, Verlet lists and positions of the last list build, as ``cpu_*``), so that a
+        run resumed from it on the CPU is bit-identical to one that was never stopped."""
         d = {name: getattr(self, name) for name in Particles.STATE}
-        d.update(t=np.array(self.t), step_count=np.array(self.step_count))
+        d.update(t=np.array(self.t), step_count=np.array(self.step_count), kind=self.kind,
+                 lost=np.array(self.lost))
+        backend_state = getattr(self._backend, "state_dict", None)
+        if backend_state is not None:
+            d.update({f"{self._backend.name}_{k}": v for k, v in backend_state().items()})
         return d
 
     def load_state(self, d) -> None:
+        """Restore :meth:`state_dict` (a dict or an opened .npz). Entries that an older
+        checkpoint or the other backend did not write are left as they are (without the
+        neighbour state the lists are rebuilt at the next step)."""
+        keys = set(d.keys())
         for name in Particles.STATE:
             getattr(self, name)[:] = d[name]
         self.t = float(d["t"])
         self.step_count = int(d["step_count"])
+        if "kind" in keys:
+            self.kind[:] = d["kind"]
+            self.sidx = np.flatnonzero(self.kind == K.SOIL).astype(np.int64)
+        if "lost" in keys:
+            self.lost = int(d["lost"])
+        pre = f"{self._backend.name}_"
+        own = {k[len(pre):]: d[k] for k in keys if k.startswith(pre)}
+        if own and hasattr(self._backend, "load_state"):
+            self._backend.load_state(own)
 
 
 class CPUBackend:
@@ -502,6 +523,37 @@ class CPUBackend:
             self.fp, self.ip, self.cl, self.clbox)
         return int(done), int(nbad)
 
+    def state_dict(self) -> dict:
+        """The neighbour search state that persists between steps (see
+        :meth:`Solver.state_dict`): positions at the last list build, the cell order and
+        pair chunks made then, the Verlet lists of pass 1 and of the boundary particles (the
+        columns up to the longest list) and the counters. Pass 2's lists (nbj, nbw, nbn) and
+        the scratch buffers are rewritten every step before they are read."""
+        s = self.s
+        vj, vn = self.nb[0], self.nb[1]
+        m = int(max(vn.max(initial=0), 0))
+        mb = int(max(self.bn.max(initial=0), 0))
+        return {"xb": self.xb, "zb": self.zb, "cell_start": s.cell_start,
+                "cell_index": s.cell_index, "bounds": self.bounds, "ip": self.ip,
+                "vj": vj[:, :m], "vn": vn, "bj": self.bj[:, :mb], "bn": self.bn}
+
+    def load_state(self, d) -> None:
+        s = self.s
+        self.xb[:] = d["xb"]
+        self.zb[:] = d["zb"]
+        s.cell_start[:] = d["cell_start"]
+        s.cell_index[:] = d["cell_index"]
+        self.bounds[:] = d["bounds"]
+        for k in ("nchunk", "builds"):
+            i = K.IP.index(k)
+            self.ip[i] = d["ip"][i]
+        vj = np.asarray(d["vj"])
+        self.nb[0][:, :vj.shape[1]] = vj
+        self.nb[1][:] = d["vn"]
+        bj = np.asarray(d["bj"])
+        self.bj[:, :bj.shape[1]] = bj
+        self.bn[:] = d["bn"]
+
     def drop_lost(self, box) -> int:
         s = self.s
         x0, x1, z0 = box
@@ -551,6 +603,9 @@ class RunResult:
     dt: float
     wall_seconds: float
     particles: int
+    #: None, or where a rerun resumed from its checkpoint: {"checkpoint": path, "step": step
+    #: count, "time_s": solver time (settling included), "total_s": the run's end time}
+    resumed_from: dict | None = None
 
 
 def run(scene: Scene, duration: float, *, snapshot_times=(), checkpoint: str | Path | None = None,
@@ -561,13 +616,20 @@ def run(scene: Scene, duration: float, *, snapshot_times=(), checkpoint: str | P
     Forces on the leg are recorded every step after settling. ``snapshot_times``: motion times
     (s) at which to keep particle snapshots. ``checkpoint``: a file; the state is written there
     every ``checkpoint_every`` wall-clock seconds and a rerun of the same scene resumes from it
-    (it is removed at the end). ``progress(done_s, total_s)`` is called every few hundred steps.
+    (bit-identical to a run never stopped, on the CPU backend; the result's ``resumed_from``
+    says where), and it is removed at the end. A file there that is not a checkpoint of this
+    run is never overwritten or removed: the run refuses to start (:class:`InputError` on
+    ``checkpoint``). ``progress(done_s, total_s)`` is called every few hundred steps.
     """
     import time as _time
 
     duration = float(duration)
     if not (duration >= 0 and math.isfinite(duration)):
         raise InputError("duration", f"must be >= 0 s, got {duration!r}")
+    snap_times = sorted(float(t) for t in snapshot_times)
+    key = scene_key(scene, {"duration": duration, "snaps": snap_times})
+    ck = Path(checkpoint) if checkpoint else None
+    resume = check_checkpoint(ck, key)  # before any work: never take over a file not ours
     solver = Solver(scene)
     t_total = solver.settle_time + duration
     nsteps = int(math.ceil(t_total / solver.dt))
@@ -575,20 +637,24 @@ def run(scene: Scene, duration: float, *, snapshot_times=(), checkpoint: str | P
     rec = np.zeros((nsteps + 1, 4))
     nrec = 0
     snaps: list = []
-    snap_times = sorted(float(t) for t in snapshot_times)
-    key = scene_key(scene, {"duration": duration, "snaps": snap_times})
-    ck = Path(checkpoint) if checkpoint else None
-    if ck is not None and ck.is_file():
+    resumed_from = None
+    if resume:
         try:
             with np.load(ck, allow_pickle=False) as d:
-                if str(d["key"]) == key:
-                    solver.load_state(d)
-                    nrec = int(d["nrec"])
-                    rec[:nrec] = d["rec"][:nrec]
+                nrec = int(d["nrec"])
+                rec[:nrec] = d["rec"][:nrec]
+                solver.load_state(d)
+            resumed_from = {"checkpoint": str(ck), "step": solver.step_count,
+                            "time_s": solver.t, "total_s": t_total}
         except (OSError, KeyError, ValueError, EOFError, zipfile.BadZipFile):
-            pass  # unreadable (e.g. truncated) checkpoint: start afresh
+            # this run's checkpoint but damaged (its key is readable, a part is not): start
+            # afresh from a new solver, and overwrite it at the next checkpoint
+            solver = Solver(scene)
+            nrec = 0
     t0 = _time.perf_counter()
     last_ck = t0
+    if progress is not None:
+        progress(solver.t, t_total)  # the work starts (from the resume point, if resumed)
     si = sum(1 for t in snap_times if t < solver.t - solver.settle_time)
     while solver.step_count < nsteps:
         tm = solver.t - solver.settle_time
@@ -609,7 +675,15 @@ def run(scene: Scene, duration: float, *, snapshot_times=(), checkpoint: str | P
         if progress is not None and solver.step_count % 200 == 0:
             progress(solver.t, t_total)
         if ck is not None and _time.perf_counter() - last_ck > checkpoint_every:
-            _save_checkpoint(ck, solver, key, rec, nrec)
+            if not ck.exists() or _checkpoint_key(ck) == key:
+                _save_checkpoint(ck, solver, key, rec, nrec)
+            else:  # another file appeared there during the run: leave it, stop checkpointing
+                import warnings
+
+                warnings.warn(f"checkpoint: {ck} was replaced by a file this run did not "
+                              "write; it is left alone and the run no longer checkpoints",
+                              RuntimeWarning, stacklevel=2)
+                ck = None
             last_ck = _time.perf_counter()
     tm = solver.t - solver.settle_time
     while si < len(snap_times):
@@ -617,14 +691,61 @@ def run(scene: Scene, duration: float, *, snapshot_times=(), checkpoint: str | P
         si += 1
     if progress is not None:
         progress(t_total, t_total)
-    if ck is not None:
+    if ck is not None and _checkpoint_key(ck) == key:
         ck.unlink(missing_ok=True)  # two runs of one scene may race to finish
     rec = rec[:nrec]
     res = RunResult(rec[:, 0], rec[:, 1], rec[:, 2], rec[:, 3], snaps, solver.step_count,
-                    solver.dt, _time.perf_counter() - t0, solver.n)
+                    solver.dt, _time.perf_counter() - t0, solver.n, resumed_from)
     res.solver = solver
     res.lost = solver.lost
     return res
+
+
+def _checkpoint_key(path: Path) -> str | None:
+    """The run key stored in the checkpoint file ``path``; None if there is no readable
+    terradyn checkpoint there (missing, not an .npz, truncated, no ``key`` entry)."""
+    if not path.is_file():
+        return None
+    try:
+        d = np.load(path, allow_pickle=False)
+    except (OSError, ValueError, EOFError, zipfile.BadZipFile):
+        return None
+    if not isinstance(d, np.lib.npyio.NpzFile):  # a .npy array
+        return None
+    try:
+        with d:
+            k = d["key"] if "key" in d.files else None
+    except (OSError, KeyError, ValueError, EOFError, zipfile.BadZipFile):
+        return None
+    if k is None or k.ndim != 0 or k.dtype.kind != "U":
+        return None
+    return str(k)
+
+
+def check_checkpoint(path: str | Path | None, key: str | None = None) -> bool:
+    """Check a checkpoint path before a run; True if there is a checkpoint to resume from.
+
+    A missing file is fine (its folder must be writable). An existing one must be a terradyn
+    checkpoint, and with ``key`` one of this run: anything else (another file, a truncated
+    copy, another run's checkpoint) is refused with :class:`InputError` on ``checkpoint``
+    rather than overwritten and removed."""
+    if path is None:
+        return False
+    from ..io import check_writable
+
+    path = Path(path)
+    check_writable(path, "checkpoint")
+    if not path.exists():
+        return False
+    got = _checkpoint_key(path)
+    if got is None:
+        raise InputError("checkpoint", f"{path} exists and is not a terradyn checkpoint: "
+                                       "remove it or choose another path")
+    if key is not None and got != key:
+        raise InputError("checkpoint", f"{path} exists and is not a checkpoint of this run (it "
+                                       "is of another scene, resolution or motion): remove it "
+                                       "or choose another path")
+    return True
 
 
 def _save_checkpoint(path: Path, solver: Solver, key: str, rec, nrec) -> None:

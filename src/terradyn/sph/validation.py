@@ -111,6 +111,8 @@ def plate_push(medium="3 mm glass CP", *, length=3.81 * CM, width=2.54 * CM, thi
     ``fit_from``, against the measured value of Li 2013 (Table S1 footnote, via MEDIA)."""
     from .api import simulate
 
+    positive("speed", speed, "m/s")
+    positive("depth", depth, "m")
     mat = _material(medium)
     cfg = config or SPHConfig(dx=dx)
     plate = ArcLeg(width, 20, length, 0.0, "plate", direction=math.pi / 2)

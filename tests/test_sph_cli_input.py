@@ -1,0 +1,170 @@
+"""`terradyn sph` with bad input: one line naming the field (and the allowed range in the
+user's units), exit code 2, and no simulation work; checkpoints that are not the run's own
+are left alone; a resumed run says so and gives the uninterrupted run's forces."""
+import numpy as np
+import pytest
+
+import terradyn.sph as sph_pkg
+from terradyn.cli import main
+from terradyn.sph import api, solver, validation
+
+
+class Started(AssertionError):
+    pass
+
+
+@pytest.fixture
+def no_work(monkeypatch):
+    """Every way the commands start a simulation fails the test."""
+
+    def boom(*a, **k):
+        raise Started("a simulation started before the input was checked")
+
+    for mod, name in ((sph_pkg, "simulate"), (api, "simulate"), (api, "leg_scene"), (api, "run"),
+                      (solver, "Solver"), (validation, "bed_at_rest"),
+                      (validation, "column_collapse"), (validation, "plate_push"),
+                      (validation, "rotating_leg")):
+        monkeypatch.setattr(mod, name, boom)
+
+
+def _one_line_error(capsys, field, *parts):
+    err = capsys.readouterr().err.strip()
+    assert len(err.splitlines()) == 1, err
+    assert err.startswith(f"error: {field}:") and "Traceback" not in err, err
+    for p in parts:
+        assert p in err, err
+    return err
+
+
+@pytest.mark.parametrize("cmd", [["run", "--quick"], ["bed", "--quick"], ["column", "--quick"],
+                                 ["plate", "--quick"], ["legs", "--quick"]])
+@pytest.mark.parametrize("dx", ["0", "-1", "nan", "50"])
+def test_dx_mm_zero_negative_nan_or_too_coarse(cmd, dx, no_work, capsys, tmp_path):
+    assert main(["sph", *cmd, "--dx-mm", dx] + (["--outdir", str(tmp_path)] if cmd[0] == "legs" else [])) == 2
+    _one_line_error(capsys, "dx-mm", "(0, 10] mm")
+
+
+def test_default_config_treats_zero_dx_as_an_error_not_the_default():
+    from terradyn.errors import InputError
+
+    assert api.default_config(True).dx == api.QUICK_DX and api.default_config(dx=None).dx == api.FULL_DX
+    for bad in (0.0, -1e-3):
+        with pytest.raises(InputError, match="dx"):
+            api.default_config(dx=bad)
+
+
+def test_negative_snapshots(no_work, capsys):
+    assert main(["sph", "run", "--quick", "--snapshots", "-3"]) == 2
+    _one_line_error(capsys, "snapshots", ">= 0")
+
+
+@pytest.mark.parametrize("args, field, unit", [
+    (["--speed-cm-s", "0"], "speed-cm-s", "cm/s"), (["--speed-cm-s", "-1"], "speed-cm-s", "cm/s"),
+    (["--depth-cm", "0"], "depth-cm", "> 0 cm"), (["--depth-cm", "-3"], "depth-cm", "> 0 cm")])
+def test_plate_speed_and_depth(args, field, unit, no_work, capsys):
+    assert main(["sph", "plate", "--quick", *args]) == 2
+    _one_line_error(capsys, field, unit)
+
+
+def test_plate_push_api_checks_speed():
+    from terradyn.errors import InputError
+
+    with pytest.raises(InputError, match="speed"):
+        validation.plate_push(speed=0.0)
+
+
+def test_outputs_checked_before_the_run(no_work, capsys, tmp_path):
+    afile = tmp_path / "afile"
+    afile.write_text("mine")
+    cases = [(["--out", str(tmp_path / "x.xlsx")], "out", ".xlsx"),
+             (["--out", str(afile / "x.nc")], "out", "not a directory"),
+             (["--out", str(tmp_path)], "out", ""),
+             (["--plot", str(tmp_path / "f.bmp")], "plot", ".bmp"),
+             (["--plot", str(afile / "f.png")], "plot", "not a directory"),
+             (["--snapshots", "3", "--snapshots-out", str(tmp_path / "s.csv")], "snapshots-out", ".nc"),
+             (["--checkpoint", str(tmp_path)], "checkpoint", "directory")]
+    for args, field, part in cases:
+        assert main(["sph", "run", "--quick", *args]) == 2, args
+        _one_line_error(capsys, field, part)
+    assert afile.read_text() == "mine"
+    for cmd in (["bed"], ["column"], ["plate"]):
+        assert main(["sph", *cmd, "--quick", "--plot", str(tmp_path / "f.xlsx")]) == 2
+        _one_line_error(capsys, "plot", ".xlsx")
+
+
+def test_legs_outdir_and_checkpoint_dir_that_are_files(no_work, capsys, tmp_path):
+    afile = tmp_path / "afile"
+    afile.write_text("mine")
+    assert main(["sph", "legs", "--quick", "--outdir", str(afile)]) == 2
+    _one_line_error(capsys, "outdir", "not a directory")
+    assert main(["sph", "legs", "--quick", "--outdir", str(tmp_path / "o"),
+                 "--checkpoint-dir", str(afile)]) == 2
+    _one_line_error(capsys, "checkpoint-dir", "not a directory")
+    ckdir = tmp_path / "ck"
+    ckdir.mkdir()
+    (ckdir / "c_w0.2.npz").write_text("not a checkpoint")
+    assert main(["sph", "legs", "--quick", "--leg", "flat", "--leg", "c", "--outdir",
+                 str(tmp_path / "o"), "--checkpoint-dir", str(ckdir)]) == 2
+    _one_line_error(capsys, "checkpoint", "c_w0.2.npz", "not a terradyn checkpoint")
+    assert (ckdir / "c_w0.2.npz").read_text() == "not a checkpoint"
+    assert afile.read_text() == "mine" and not (tmp_path / "o").exists()
+
+
+@pytest.mark.parametrize("content", [b"my notes", b"PK\x03\x04 truncated", None])
+def test_a_file_that_is_not_a_checkpoint_is_refused_and_kept(content, no_work, capsys, tmp_path):
+    ck = tmp_path / "mine.npz"
+    if content is None:  # a valid .npz, but not a terradyn checkpoint (no key)
+        np.savez(ck, data=np.arange(3))
+        content = ck.read_bytes()
+    else:
+        ck.write_bytes(content)
+    assert main(["sph", "run", "--quick", "--checkpoint", str(ck)]) == 2
+    _one_line_error(capsys, "checkpoint", "not a terradyn checkpoint", "remove it")
+    assert ck.read_bytes() == content
+
+
+RUN = ["sph", "run", "--dx-mm", "6", "--omega", "2", "--theta-start-deg", "-80",
+       "--theta-end-deg", "-70", "--n-theta", "5"]
+
+
+def test_another_runs_checkpoint_is_refused_before_the_solver(monkeypatch, capsys, tmp_path):
+    def boom(*a, **k):
+        raise Started("the solver started")
+
+    monkeypatch.setattr(solver, "Solver", boom)
+    ck = tmp_path / "ck.npz"
+    np.savez(ck, key=np.array("0123456789abcdef"), nrec=np.array(0), rec=np.zeros((0, 4)))
+    before = ck.read_bytes()
+    assert main(RUN + ["--checkpoint", str(ck), "-o", str(tmp_path / "f.csv")]) == 2
+    _one_line_error(capsys, "checkpoint", "not a checkpoint of this run")
+    assert ck.read_bytes() == before and not (tmp_path / "f.csv").exists()
+
+
+def test_interrupted_run_resumes_says_so_and_matches(monkeypatch, capsys, tmp_path):
+    full = tmp_path / "full.csv"
+    assert main(RUN + ["-o", str(full)]) == 0
+    capsys.readouterr()
+    real = solver.run
+
+    def interrupted(scene, duration, **kw):
+        cb = kw["progress"]
+
+        def progress(done, total):
+            cb(done, total)
+            if done > 0.5 * total:
+                raise KeyboardInterrupt
+
+        return real(scene, duration, **(kw | {"progress": progress, "checkpoint_every": 0.0}))
+
+    ck = tmp_path / "ck.npz"
+    out = tmp_path / "f.csv"
+    monkeypatch.setattr(api, "run", interrupted)
+    assert main(RUN + ["--checkpoint", str(ck), "-o", str(out)]) == 130
+    assert ck.exists() and not out.exists()
+    capsys.readouterr()
+    monkeypatch.setattr(api, "run", real)
+    assert main(RUN + ["--checkpoint", str(ck), "-o", str(out)]) == 0
+    err = capsys.readouterr().err
+    assert f"resumed from checkpoint {ck} at step " in err and " s of " in err
+    assert out.read_text() == full.read_text()  # the same digits as the uninterrupted run
+    assert not ck.exists() and not list(tmp_path.glob("*.tmp.npz"))
