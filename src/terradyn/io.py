@@ -142,26 +142,6 @@ def emit(ds: xr.Dataset, out: str | None) -> None:
         write(ds, out)
 
 
-def check_output(path: str | Path, suffixes: tuple[str, ...], field: str = "out") -> Path:
-    """Refuse an output path before any work: a suffix not in ``suffixes``, a directory, or a
-    parent that is not a writable directory (created if missing) is an InputError naming
-    ``field``."""
-    import os
-
-    p = Path(path)
-    if p.suffix.lower() not in suffixes:
-        raise InputError(field, f"unsupported file type {p.suffix or '(none)'!r} for {p}; "
-                                f"use one of {', '.join(suffixes)}")
-    if p.is_dir():
-        raise InputError(field, f"{p} is a directory")
-    parent = p.parent if str(p.parent) else Path(".")
-    if parent.exists() and not parent.is_dir():
-        raise InputError(field, f"{parent} is not a directory")
-    if parent.exists() and not os.access(parent, os.W_OK):
-        raise InputError(field, f"{parent} is not writable")
-    return p
-
-
 def atomic_write_text(path: str | Path, text: str) -> Path:
     """Write ``text`` to ``path`` through a temporary file of this process, renamed over it."""
     import os

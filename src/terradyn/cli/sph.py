@@ -26,7 +26,24 @@ _DX = typer.Option(None, "--dx-mm", help=f"Particle spacing, mm, in (0, {DX_MM_M
 _BACKEND = typer.Option(Backend.cpu, "--backend",
                         help="Kernels: cpu (multi-threaded), gpu (NVIDIA, needs the 'gpu' extra) "
                              "or auto (the GPU when one is usable).")
-_MEDIUM = typer.Option("3 mm glass CP", help="Medium (Li 2013 Table S1 name), e.g. '3 mm glass CP', 'poppy LP'.")
+_MEDIUM = typer.Option("3 mm glass CP", help="Medium (Li 2013 Table S1 name), e.g. '3 mm glass CP', 'poppy LP'; with --density-kg-m3, the name of your own medium.")
+_DENSITY = typer.Option(None, "--density-kg-m3", help="Your own medium: bulk density, kg/m^3 (needs --friction-deg; calibrate it with 'terradyn sph calibrate').")
+_FRICTION = typer.Option(None, "--friction-deg", help="Friction angle, deg [default: the medium's angle of repose, Li 2013 Table S1].")
+_BOUNDARY = typer.Option("resolved", "--boundary", help="Leg boundary: resolved (sides kept apart, contact at dx/4) or guard (the model before issue 17).")
+
+
+def _material(medium: str, density_kg_m3: float | None, friction_deg: float | None):
+    """The SPH material of the options: a Li 2013 medium (optionally another friction angle)
+    or the user's own from its density and friction angle."""
+    from ..errors import InputError
+    from ..sph.materials import from_medium, from_properties
+
+    if density_kg_m3 is not None:
+        if friction_deg is None:
+            raise InputError("friction-deg", "your own medium (--density-kg-m3) needs "
+                                             "--friction-deg (find it: terradyn sph calibrate)")
+        return from_properties(medium, density_kg_m3, friction_deg)
+    return from_medium(medium, friction_deg=friction_deg)
 
 
 @contextmanager
@@ -64,11 +81,12 @@ def _dx(dx_mm: float | None) -> float | None:
 
 
 def _config(quick: bool, dx_mm: float | None, cfl: float, lowpass_hz: float | None,
-            backend: str = "cpu"):
+            backend: str = "cpu", boundary: str = "resolved"):
     from ..sph.api import default_config
     from ..sph.solver import resolve_backend
 
-    cfg = default_config(quick, dx=_dx(dx_mm), cfl=cfl, lowpass_hz=lowpass_hz, backend=backend)
+    cfg = default_config(quick, dx=_dx(dx_mm), cfl=cfl, lowpass_hz=lowpass_hz, backend=backend,
+                         boundary=boundary)
     resolve_backend(cfg.backend)  # --backend gpu without a GPU: fail before any work
     return cfg
 
@@ -104,6 +122,9 @@ def run_cmd(
     n_theta: int = typer.Option(271, help="Number of output angles."),
     motion_file: Optional[Path] = typer.Option(None, help="Planar motion CSV time_s,hip_x_cm,hip_z_cm,angle_deg."),
     medium: str = _MEDIUM,
+    density_kg_m3: Optional[float] = _DENSITY,
+    friction_deg: Optional[float] = _FRICTION,
+    boundary: str = _BOUNDARY,
     quick: bool = _QUICK,
     dx_mm: Optional[float] = _DX,
     cfl: float = typer.Option(0.2, help="Courant number of the time step."),
@@ -138,12 +159,18 @@ def run_cmd(
     shape = leg_from_field_units(leg.value, leg_file, curvature, length_cm, width_cm)
     motion = motion_from_field_units(False, motion_file, omega, hip_height_cm, theta_start_deg,
                                      theta_end_deg, n_theta)
-    cfg = _config(quick, dx_mm, cfl, lowpass_hz, Backend(backend).value)
+    cfg = _config(quick, dx_mm, cfl, lowpass_hz, Backend(backend).value, boundary)
+    mat = _material(medium, density_kg_m3, friction_deg)
+    if compare_rft and density_kg_m3 is not None:
+        from ..errors import InputError
+
+        raise InputError("compare-rft", "RFT needs the stress coefficients of a Li 2013 medium; "
+                                        "your own medium has none")
     traj = motion.trajectory()
     snap_t = np.linspace(0, traj.time[-1] - traj.time[0], snapshots) if snapshots else ()
     try:
         with _progress(f"SPH {shape.name}") as cb:
-            ds, res = simulate(shape, motion, medium, config=cfg, thickness=thickness_cm * CM,
+            ds, res = simulate(shape, motion, mat, config=cfg, thickness=thickness_cm * CM,
                                snapshot_times=snap_t, checkpoint=checkpoint, progress=cb,
                                return_run=True, quick=quick)
     except SPHInstabilityError as e:
@@ -208,7 +235,9 @@ def column_cmd(aspect: list[float] = typer.Option([0.5, 1.0, 2.0], help="Aspect 
 
 
 @sph_app.command("plate")
-def plate_cmd(medium: str = _MEDIUM, quick: bool = _QUICK, dx_mm: Optional[float] = _DX,
+def plate_cmd(medium: str = _MEDIUM, density_kg_m3: Optional[float] = _DENSITY,
+              friction_deg: Optional[float] = _FRICTION, boundary: str = _BOUNDARY,
+              quick: bool = _QUICK, dx_mm: Optional[float] = _DX,
               speed_cm_s: float = typer.Option(1.0, help="Plate speed, cm/s."),
               depth_cm: float = typer.Option(5.0, help="Final depth, cm."),
               plot: Optional[Path] = typer.Option(None, help="Figure: stress on the plate vs depth.")):
@@ -220,8 +249,9 @@ def plate_cmd(medium: str = _MEDIUM, quick: bool = _QUICK, dx_mm: Optional[float
     positive("speed-cm-s", speed_cm_s, "cm/s")
     positive("depth-cm", depth_cm, "cm")
     io.check_plot(plot)
-    cfg = default_config(quick, dx=_dx(dx_mm))
-    r = validation.plate_push(medium, speed=speed_cm_s * 1e-2, depth=depth_cm * 1e-2, config=cfg)
+    cfg = default_config(quick, dx=_dx(dx_mm), boundary=boundary)
+    r = validation.plate_push(_material(medium, density_kg_m3, friction_deg),
+                              speed=speed_cm_s * 1e-2, depth=depth_cm * 1e-2, config=cfg)
     typer.echo(json.dumps({"alpha_z_N_per_cm3": r["alpha_z"] / 1e6,
                            "alpha_z_measured_N_per_cm3": (r["alpha_z_measured"] or float("nan")) / 1e6,
                            "alpha_z_rft_fit_N_per_cm3": r["alpha_z_fit"] / 1e6}))

@@ -47,7 +47,7 @@ def calibrate_cmd(
     if out is not None:
         from ..io import check_output
 
-        check_output(out, (".json",), "out")
+        check_output(out, "out", (".json",))
     jobs = []
     if density_kg_m3 is not None or alpha_z_n_cm3 is not None:
         if medium:
@@ -84,5 +84,46 @@ def calibrate_cmd(
         err(f"wrote {out}")
 
 
+
+
+def validate_cmd(
+    out: Path = typer.Option(..., "--out", "-o", help="Directory for validation.json and the figures."),
+    quick: bool = typer.Option(False, "--quick", help="4 mm particles, one column (a = 1), the rig's 3 x 5 subset, the flat leg only."),
+    scene: list[str] = typer.Option([], "--scene", help="Scenes to run (repeat): bed, column, plate, rig, legs [default: all]."),
+    medium: list[str] = typer.Option([], "--medium", help="Media for plate, rig and legs (repeat) [default: the five of Li 2013; legs only where Fig. S5 has curves]."),
+    dx_mm: Optional[float] = typer.Option(None, "--dx-mm", help="Particle spacing, mm [default: 3; --quick 4]."),
+    omega: float = typer.Option(1.1, help="Angular speed of the leg tests, rad/s (0.2-1.1 is rate-independent, docs/sph.md)."),
+):
+    """Run the SPH validation scenes and compare with measurements: validation.json (quantity,
+    ours, reference, source, difference, verdict) and figures in OUT.
+
+    Exit code 0 whether checks pass or fail (the JSON says which); 2 for bad input.
+    """
+    from ..errors import InputError, in_range
+    from ..sph import suite
+    from . import err
+
+    for s in scene:
+        if s not in suite.SCENES:
+            raise InputError("scene", f"unknown value {s!r}; allowed: {', '.join(suite.SCENES)}")
+    dx = None if dx_mm is None else in_range("dx-mm", dx_mm, 1.0, 10.0, "mm") * 1e-3
+    in_range("omega", omega, 0.01, 10.0, "rad/s")
+    if out.exists() and not out.is_dir():
+        raise InputError("out", f"{out} exists and is not a directory")
+    out.mkdir(parents=True, exist_ok=True)
+    res = suite.validate(quick=quick, scenes=tuple(scene) or suite.SCENES, media=medium or None,
+                         dx=dx, omega=omega, progress=lambda m: err(f"[dim]{m}[/]"),
+                         figures_dir=out)
+    res["summary"] = suite.summary(res)
+    _atomic_json(out / "validation.json", res)
+    for c in res["checks"]:
+        mark = {"pass": "[green]pass[/]", "fail": "[red]fail[/]"}.get(c["verdict"], c["verdict"])
+        ref = "-" if c["reference"] is None else f"{c['reference']:.4g}"
+        err(f"{mark}  {c['quantity']}: {c['ours']:.4g} (ref {ref}; {c['tolerance']})")
+    s = res["summary"]
+    err(f"{s['pass']} of {s['total']} checks pass; wrote {out / 'validation.json'}")
+
+
 def register(sph_app: typer.Typer) -> None:
     sph_app.command("calibrate")(calibrate_cmd)
+    sph_app.command("validate")(validate_cmd)

@@ -100,20 +100,24 @@ NUMERICAL_E = 2.5e5
 
 
 def from_medium(medium: str, youngs: float = NUMERICAL_E, poisson: float = 0.3,
-                friction_deg: float | None = None, friction: str = "calibrated") -> GranularMaterial:
+                friction_deg: float | None = None, friction: str = "repose") -> GranularMaterial:
     """The SPH material for a medium of :data:`terradyn.media.MEDIA` (Li 2013 Table S1).
 
-    ``friction``: "calibrated" (default: the effective plane-strain friction angle at which
-    the SPH plate test reproduces the medium's measured alpha_z(0, pi/2), Li 2013 Table S3;
-    shipped in ``terradyn/data/sph_calibration.json``, made by ``terradyn sph calibrate``;
-    see :mod:`terradyn.sph.calibration`) or "repose" (the angle of repose, Table S1: the model
-    before issue 17). ``friction_deg`` overrides both."""
+    ``friction``: "repose" (default: the angle of repose, Table S1) or "calibrated" (the
+    effective plane-strain friction angle at which the SPH plate test reproduces the
+    medium's measured alpha_z(0, pi/2), Li 2013 Table S3, from
+    ``terradyn/data/sph_calibration.json``, written by ``terradyn sph calibrate``; see
+    :mod:`terradyn.sph.calibration` and docs/sph.md for why it is not the default yet).
+    ``friction_deg`` overrides both."""
     from .calibration import shipped
 
     choice("medium", medium, list(MEDIA))
     choice("friction", friction, ["calibrated", "repose"])
     m = MEDIA[medium]
     cal = shipped().get(medium) if friction == "calibrated" else None
+    if friction == "calibrated" and cal is None and friction_deg is None:
+        raise InputError("friction", f"no shipped plate-test calibration for {medium!r}: run "
+                                     "'terradyn sph calibrate' and pass its friction_deg")
     if friction_deg is not None:
         phi = in_range("friction", friction_deg, 0, 80, "deg") * DEG
         src = "user"

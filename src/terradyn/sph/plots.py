@@ -73,3 +73,24 @@ def leg_comparison(sph, rft, path=None, title: str = ""):
     """Scene 4/5: SPH and RFT forces of one leg."""
     return forces({"SPH": sph, "RFT": rft}, path, title=title,
                   styles={"SPH": {"color": "#d1495b"}, "RFT": {"color": "k", "ls": "--"}})
+
+
+def leg_vs_measured(r: dict, path=None, title: str = ""):
+    """One leg: SPH, RFT (measured grid, linear) and Li 2013 Fig. S5's measured curve, lift
+    and thrust against the leg angle (:func:`terradyn.sph.suite.leg_vs_measured`)."""
+    with plt.rc_context(STYLE):
+        fig, axes = plt.subplots(1, 2, figsize=(7.0, 2.8), sharex=True)
+        for ax, comp, what in ((axes[0], "Fz", "lift $F_z$ (N)"), (axes[1], "Fx", "thrust $F_x$ (N)")):
+            ax.plot(r["sph"].theta, r["sph"][comp], color="#d1495b", label="SPH")
+            ax.plot(r["rft"].theta, r["rft"][comp], "k--", label="RFT (Table S5, linear)")
+            ax.plot(r[comp]["theta"], r[comp]["measured"], ".", color="0.45", ms=2.5,
+                    label="measured (Li 2013 Fig. S5)")
+            ax.axhline(0, color="0.8", lw=0.6)
+            ax.set_xlabel(r"leg angle $\theta$ (deg)")
+            ax.set_ylabel(what)
+            ax.set_xlim(-135, 135)
+        axes[0].legend(frameon=False, fontsize=7, loc="upper right")
+        if title:
+            fig.suptitle(title, fontsize=9)
+        fig.tight_layout()
+        return _save(fig, path)

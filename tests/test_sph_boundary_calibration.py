@@ -1,0 +1,121 @@
+"""Issue 17: the resolved leg boundary's side test, the plate-test calibration's search, the
+validation suite's plumbing (physics runs of the suite belong to `terradyn sph validate`)."""
+import json
+import math
+
+import numpy as np
+import pytest
+
+from terradyn.errors import InputError
+from terradyn.sph import calibration, kernels, materials, suite
+from terradyn.sph.scenes import centre_polyline
+from terradyn.geometry import flat_leg
+from terradyn.units import DEG, N_PER_CM3
+
+
+def _sides(px, pz, ang=0.0, hip=(0.0, 0.0)):
+    leg = flat_leg()  # hanging straight down from the hip at angle 0, chord 7.62 cm
+    cl = centre_polyline(leg, 4e-3)
+    reach = 0.012
+    box = np.array([cl[0].min() - reach, cl[0].max() + reach, cl[1].min() - reach,
+                    cl[1].max() + reach])
+    x = np.asarray(px, float)
+    z = np.asarray(pz, float)
+    kind = np.zeros(len(x), np.int8)
+    dcl = np.full(len(x), 9.0)
+    kernels.leg_sides(x, z, kind, dcl, cl, hip[0], hip[1], ang, box, reach ** 2)
+    return dcl
+
+
+def test_side_test_puts_material_beside_the_leg_on_its_two_sides_and_none_past_its_ends():
+    # a vertical leg from (0, 0) down to (0, -7.62 cm): left of it, right of it, below the
+    # tip, beyond the reach, above the hip
+    s = _sides([-0.005, 0.005, 0.0, 0.03, 0.0], [-0.04, -0.04, -0.08, -0.04, 0.01])
+    assert s[0] == -s[1] and abs(s[0]) == 1.0
+    assert s[2] == 0.0 and s[3] == 0.0 and s[4] == 0.0
+    # the sides turn with the leg: the same body-frame points after a rotation
+    ang = 40 * DEG
+    c, sn = math.cos(ang), math.sin(ang)
+    bx, bz = np.array([-0.005, 0.005]), np.array([-0.04, -0.04])
+    wx, wz = c * bx + sn * bz, -sn * bx + c * bz
+    assert np.array_equal(_sides(wx, wz, ang), s[:2])
+
+
+def test_pair_factor_drops_granular_pairs_across_the_leg_only():
+    kind = np.array([kernels.SOIL, kernels.SOIL, kernels.WALL], np.float64)
+    nox = np.zeros(3)
+    noz = np.zeros(3)
+    h = 0.005
+    sup2, dwc, inv_h = 4 * h * h, -5 * 7 / (4 * math.pi) / h ** 4, 1 / h
+    for side_j, si, expect_zero in ((1.0, -1.0, True), (1.0, 1.0, False), (0.0, -1.0, False)):
+        dcl = np.array([0.0, side_j, 0.0])
+        f = kernels._pair_fdw(1, 0.004, 0.0, kind, nox, noz, dcl, sup2, inv_h, dwc, si)
+        assert (f == 0.0) == expect_zero
+    # a wall particle is never cut by the side test
+    assert kernels._pair_fdw(2, 0.004, 0.0, kind, nox, noz, np.zeros(3), sup2, inv_h, dwc, -1.0) < 0
+
+
+def test_bearing_capacity_factor_has_its_textbook_values():
+    assert calibration.bearing_nq(0.0) == pytest.approx(1.0)
+    assert calibration.bearing_nq(30 * DEG) == pytest.approx(18.40, rel=2e-3)  # Vesic table
+
+
+def test_calibration_search_finds_the_friction_angle_of_a_monotone_plate_model(monkeypatch):
+    # a stand-in plate test: rho g N_q(phi) (plane-strain bearing capacity); the search must
+    # recover the phi that gives the target slope, from the repose angle, in a few runs
+    calls = []
+
+    def fake(mat, dx, config=None):
+        calls.append(mat.friction)
+        return {"alpha_z": 0.8 * mat.density * 9.81 * calibration.bearing_nq(mat.friction)}
+
+    monkeypatch.setattr(calibration, "plate_slope", fake)
+    mat = materials.from_medium("3 mm glass CP")
+    want = 0.8 * mat.density * 9.81 * calibration.bearing_nq(31.0 * DEG)
+    cal = calibration.calibrate_friction(mat, want, tol=0.01)
+    assert cal.converged and cal.friction_deg == pytest.approx(31.0, abs=0.3)
+    assert len(calls) <= 4 and cal.history[0][0] == pytest.approx(21.0)
+    assert cal.alpha_z_sph == pytest.approx(want / N_PER_CM3, rel=0.01)
+
+
+def test_calibration_reports_a_target_it_cannot_reach(monkeypatch):
+    monkeypatch.setattr(calibration, "plate_slope", lambda mat, dx, config=None: {"alpha_z": 1e3})
+    cal = calibration.calibrate_friction(materials.from_medium("poppy LP"), 3.5e5, max_evals=4)
+    assert not cal.converged and len(cal.history) == 4
+
+
+def test_materials_from_properties_and_calibrated_friction_needs_a_calibration():
+    m = materials.from_properties("my sand", 1600.0, 33.0)
+    assert m.density == 1600.0 and m.friction == pytest.approx(33 * DEG)
+    with pytest.raises(InputError, match="density"):
+        materials.from_properties("bad", -1.0, 30.0)
+    if not calibration.shipped().get("poppy LP"):
+        with pytest.raises(InputError, match="friction"):
+            materials.from_medium("poppy LP", friction="calibrated")
+
+
+def test_suite_rejects_unknown_scenes_and_media():
+    with pytest.raises(InputError, match="scene"):
+        suite.validate(scenes=("bogus",))
+    with pytest.raises(InputError, match="medium"):
+        suite.validate(scenes=("plate",), media=["sand"])
+
+
+def test_measured_leg_curves_ship_with_the_package():
+    df = suite.measured_legs()
+    assert set(df.medium) == set(suite.LEG_MEDIA) and set(df.leg) == set(suite.LEGS)
+    assert {"Fx", "Fz"} == set(df.force)
+
+
+def test_validate_cli_writes_a_verdict_for_every_check(tmp_path):
+    """`terradyn sph validate --scene bed` (the quickest scene): validation.json lists each
+    check with a computed verdict."""
+    from terradyn.cli import main
+
+    rc = main(["sph", "validate", "--quick", "--scene", "bed", "--out", str(tmp_path)])
+    assert rc == 0
+    res = json.loads((tmp_path / "validation.json").read_text())
+    assert res["summary"]["total"] == len(res["checks"]) >= 1
+    for c in res["checks"]:
+        assert c["verdict"] in ("pass", "fail", "no published number")
+    assert (tmp_path / "bed.png").is_file()
