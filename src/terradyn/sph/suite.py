@@ -123,7 +123,7 @@ def plate_rig(mat, *, quick=False, dx=4e-3, progress=None) -> dict:
             k += 1
             if progress:
                 progress(k, B.size)
-    mz, mx = table.alpha(B, G)
+    mx, mz = table.alpha(B, G)  # StressModel.alpha returns (alpha_x, alpha_z)
     az, ax = az / N_PER_CM3, ax / N_PER_CM3
     mz, mx = np.asarray(mz) / N_PER_CM3, np.asarray(mx) / N_PER_CM3
     scale = float(np.abs(mz).max())
