@@ -486,3 +486,27 @@ def test_shipped_foot_dataset_is_what_its_spec_gives():
     for i in (0, 4, 10):
         np.testing.assert_allclose(ds.Fz.isel(case=i).values, direct(spec.cases[i].params).Fz.values, rtol=1e-12)
     assert np.all(np.diff(ds.Fz.isel(theta=-1).values) > 0)  # longer foot, more lift (brief 2.3)
+
+
+def test_sph_sweep_takes_a_users_own_medium_and_the_boundary_model(tmp_path):
+    """A medium of the user's (density and friction angle) and the leg boundary are sweep
+    options, part of the case id, and reach the simulation."""
+    sph = pytest.importorskip("terradyn.sph")
+    own = SPH_TINY.replace('medium = "3 mm glass CP"',
+                           'medium = "my sand"\ndensity_kg_m3 = 1600.0\nfriction_deg = 33.0')
+    (c,) = sw.parse(own).cases
+    m = c.params["model"]
+    assert (m["medium"], m["density_kg_m3"], m["friction_deg"], m["boundary"]) == (
+        "my sand", 1600.0, 33.0, "resolved")
+    (g,) = sw.parse(SPH_TINY + 'boundary = "guard"\n').cases
+    assert g.id != sw.parse(SPH_TINY).cases[0].id and g.params["model"]["boundary"] == "guard"
+    with pytest.raises(InputError, match="model.friction_deg"):
+        sw.parse(own.replace("friction_deg = 33.0", ""))
+    with pytest.raises(InputError, match="model.medium"):
+        sw.parse(SPH_TINY.replace('"3 mm glass CP"', '"my sand"'))
+    with pytest.raises(InputError, match="model.boundary"):
+        sw.parse(SPH_TINY + 'boundary = "glue"\n')
+    _, ds = sw.run_case(c.id, c.params, single_thread=True)
+    inputs = td.series.inputs_of(ds)
+    assert inputs["material"]["density_kg_m3"] == 1600.0
+    assert inputs["material"]["friction_deg"] == pytest.approx(33.0)

@@ -23,6 +23,8 @@ def calibrate_cmd(
     friction_start_deg: float = typer.Option(30.0, help="A user's medium: first friction angle of the search, deg."),
     dx_mm: float = typer.Option(4.0, "--dx-mm", help="Particle spacing of the plate test, mm (the resolution the medium will run at)."),
     tol: float = typer.Option(0.03, help="Relative tolerance on the plate slope."),
+    realizations: int = typer.Option(2, help="Plate runs averaged per friction angle (single runs scatter by about 10 %)."),
+    max_evals: int = typer.Option(6, help="Most friction angles tried per medium."),
     out: Optional[Path] = typer.Option(None, "--out", "-o", help="Write the calibration JSON here [default: stdout]."),
 ):
     """Calibrate the SPH friction angle of a medium on its plate test (Li 2013 Table S3).
@@ -43,7 +45,11 @@ def calibrate_cmd(
     from ..units import N_PER_CM3
     from . import err
 
+    from ..errors import integer
+
     dx = in_range("dx-mm", dx_mm, 1.0, 20.0, "mm") * 1e-3
+    integer("realizations", realizations, 1)
+    integer("max-evals", max_evals, 2)
     if out is not None:
         from ..io import check_output
 
@@ -67,16 +73,18 @@ def calibrate_cmd(
                                            + ", ".join(k for k in MEDIA if MEDIA[k].alpha_z_plate))
             jobs.append((from_medium(m, friction="repose"), MEDIA[m].alpha_z_plate))
     result = {"_meta": {"what": "SPH friction angles calibrated on the plate test (terradyn sph calibrate)",
-                        "plate_test": PLATE_TEST, "dx_m": dx, "terradyn_version": __version__,
+                        "plate_test": PLATE_TEST, "dx_m": dx, "realizations": realizations,
+                        "terradyn_version": __version__,
                         "created": datetime.datetime.now(datetime.timezone.utc).isoformat(timespec="seconds"),
                         "machine": platform.platform()}}
     for mat, target in jobs:
         err(f"calibrating {mat.name}: measured alpha_z = {target / N_PER_CM3:g} N/cm^3")
-        cal = calibrate_friction(mat, target, dx=dx, tol=tol,
+        cal = calibrate_friction(mat, target, dx=dx, tol=tol, realizations=realizations,
+                                 max_evals=max_evals,
                                  report=lambda p, a: err(f"  phi = {p:.2f} deg -> alpha_z = {a:.4f} N/cm^3"))
         result[mat.name] = cal.describe() | {"density_kg_m3": mat.density}
         if not cal.converged:
-            err(f"  not converged within {tol:.0%}: best phi = {cal.friction_deg:.2f} deg")
+            err(f"  not converged ({cal.note}): best phi = {cal.friction_deg:.2f} deg")
     if out is None:
         typer.echo(json.dumps(result, indent=1))
     else:

@@ -79,7 +79,7 @@ def leg_vs_measured(r: dict, path=None, title: str = ""):
     """One leg: SPH, RFT (measured grid, linear) and Li 2013 Fig. S5's measured curve, lift
     and thrust against the leg angle (:func:`terradyn.sph.suite.leg_vs_measured`)."""
     with plt.rc_context(STYLE):
-        fig, axes = plt.subplots(1, 2, figsize=(7.0, 2.8), sharex=True)
+        fig, axes = plt.subplots(1, 2, figsize=(7.0, 3.2), sharex=True, layout="constrained")
         for ax, comp, what in ((axes[0], "Fz", "lift $F_z$ (N)"), (axes[1], "Fx", "thrust $F_x$ (N)")):
             ax.plot(r["sph"].theta, r["sph"][comp], color="#d1495b", label="SPH")
             ax.plot(r["rft"].theta, r["rft"][comp], "k--", label="RFT (Table S5, linear)")
@@ -89,8 +89,37 @@ def leg_vs_measured(r: dict, path=None, title: str = ""):
             ax.set_xlabel(r"leg angle $\theta$ (deg)")
             ax.set_ylabel(what)
             ax.set_xlim(-135, 135)
-        axes[0].legend(frameon=False, fontsize=7, loc="upper right")
+        fig.legend(*axes[0].get_legend_handles_labels(), frameon=False, fontsize=7.5,
+                   loc="outside lower center", ncol=3)
         if title:
             fig.suptitle(title, fontsize=9)
-        fig.tight_layout()
+        return _save(fig, path)
+
+
+def rig_maps(r: dict, path=None, title: str = ""):
+    """The virtual plate rig: SPH's alpha_z and alpha_x (N/cm^3) against the intrusion angle
+    gamma, one line per attack angle beta, beside Li 2013 Table S5's measured values
+    (:func:`terradyn.sph.suite.plate_rig`)."""
+    betas = np.asarray(r["beta"])
+    gam = np.degrees(np.asarray(r["gamma"]))
+    colors = plt.cm.viridis(np.linspace(0, 0.9, len(betas)))
+    with plt.rc_context(STYLE):
+        fig, axes = plt.subplots(1, 2, figsize=(7.0, 3.0), sharex=True, layout="constrained")
+        for ax, comp in ((axes[0], "z"), (axes[1], "x")):
+            sim = np.asarray(r[f"alpha_{comp}"])
+            mea = np.asarray(r[f"alpha_{comp}_measured"])
+            for i, b in enumerate(betas):
+                ax.plot(gam, sim[i], "-o", ms=2.5, color=colors[i],
+                        label=rf"$\beta$ = {np.degrees(b):.0f}$^\circ$")
+                ax.plot(gam, mea[i], ":", color=colors[i])
+            ax.axhline(0, color="0.8", lw=0.6)
+            ax.set_xlabel(r"intrusion angle $\gamma$ (deg)")
+            ax.set_ylabel(rf"$\alpha_{comp}$ (N/cm$^3$)")
+            ax.set_xlim(-90, 90)
+        axes[0].plot([], [], "k-o", ms=2.5, label="SPH (solid)")
+        axes[0].plot([], [], "k:", label="Li 2013 Table S5 (dotted)")
+        fig.legend(*axes[0].get_legend_handles_labels(), frameon=False, fontsize=7,
+                   loc="outside right center")
+        if title:
+            fig.suptitle(title, fontsize=9)
         return _save(fig, path)

@@ -205,6 +205,7 @@ def validate(*, quick=False, scenes=SCENES, media=None, dx=None, omega=1.1, prog
                                 r["runout_lube"],
                                 "Lube et al. 2005 fits (quasi-2D channel with side walls)",
                                 "within 25 %", abs(r["runout"] / r["runout_lube"] - 1) <= 0.25))
+        details["column"] = [{k: v for k, v in r.items() if isinstance(v, float)} for r in rows]
         if fig("columns.png"):
             plots.columns(rows, fig("columns.png"))
     if "plate" in scenes:
@@ -231,6 +232,9 @@ def validate(*, quick=False, scenes=SCENES, media=None, dx=None, omega=1.1, prog
                                     "<= 0.20", r[f"rms_{comp}_frac"] <= 0.20))
             details.setdefault("rig", {})[m] = {k: (v.tolist() if hasattr(v, "tolist") else v)
                                                 for k, v in r.items()}
+            if fig(f"rig_{m.replace(' ', '_')}.png"):
+                plots.rig_maps(r, fig(f"rig_{m.replace(' ', '_')}.png"),
+                               title=f"virtual plate rig, {m} (phi = {material(m).friction / DEG:.1f} deg)")
     if "legs" in scenes:
         for m in [x for x in media if x in LEG_MEDIA] or ([] if media else list(LEG_MEDIA)):
             for leg in (("flat",) if quick else LEGS):

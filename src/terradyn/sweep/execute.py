@@ -82,12 +82,17 @@ def simulate_case(params: dict, checkpoint: str | None = None):
         from ..units import CM
 
         kw = {k: m[k] for k in ("hdx", "cfl", "av_alpha", "av_beta", "wall_layers", "noslip")}
+        kw["boundary"] = m.get("boundary", "guard")  # stores made before the resolved boundary
         if "settle_time_s" in m:
             kw["settle_time"] = m["settle_time_s"]
         if "lowpass_hz" in m:
             kw["lowpass_hz"] = m["lowpass_hz"]
         cfg = sph.SPHConfig(dx=m["dx_mm"] * 1e-3, **kw)
-        return sph.simulate(leg, motion, m["medium"], quick=m["quick"], config=cfg,
+        if "density_kg_m3" in m:
+            mat = sph.materials.from_properties(m["medium"], m["density_kg_m3"], m["friction_deg"])
+        else:
+            mat = sph.materials.from_medium(m["medium"], friction_deg=m.get("friction_deg"))
+        return sph.simulate(leg, motion, mat, quick=m["quick"], config=cfg,
                             thickness=m["thickness_cm"] * CM,
                             bed_width=m["bed_width_cm"] * CM if "bed_width_cm" in m else None,
                             bed_depth=m["bed_depth_cm"] * CM if "bed_depth_cm" in m else None,

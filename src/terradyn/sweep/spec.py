@@ -65,7 +65,8 @@ MODEL_KEYS = {
     "rft": {"medium": str, "alpha": str, "zeta": float, "interp": str},
     "sph": {"medium": str, "quick": bool, "dx_mm": float, "hdx": float, "cfl": float, "av_alpha": float,
             "av_beta": float, "wall_layers": int, "noslip": bool, "settle_time_s": float,
-            "lowpass_hz": float, "thickness_cm": float, "bed_width_cm": float, "bed_depth_cm": float},
+            "lowpass_hz": float, "thickness_cm": float, "bed_width_cm": float, "bed_depth_cm": float,
+            "boundary": str, "friction_deg": float, "density_kg_m3": float},
 }
 ID_LENGTH = 12
 
@@ -368,11 +369,21 @@ def _resolve_sph(opts: dict) -> dict:
     from ..sph.scenes import LEG_THICKNESS
 
     medium = opts["medium"]
-    if medium not in media.MEDIA:
-        raise InputError("model.medium", f"unknown medium {medium!r}; allowed: {', '.join(media.MEDIA)}")
+    own = "density_kg_m3" in opts  # a user's medium: its name is free, density and phi given
+    if not own and medium not in media.MEDIA:
+        raise InputError("model.medium", f"unknown medium {medium!r}; allowed: {', '.join(media.MEDIA)} "
+                                         "(or give density_kg_m3 and friction_deg for your own)")
+    if own and "friction_deg" not in opts:
+        raise InputError("model.friction_deg", "your own medium (density_kg_m3) needs friction_deg "
+                                               "(find it: terradyn sph calibrate)")
+    if own and not opts["density_kg_m3"] > 0:
+        raise InputError("model.density_kg_m3", f"must be > 0 kg/m^3, got {opts['density_kg_m3']!r}")
+    if "friction_deg" in opts and not 0 < opts["friction_deg"] <= 80:
+        raise InputError("model.friction_deg", f"must be in (0, 80] deg, got {opts['friction_deg']!r}")
     quick = bool(opts.get("quick", False))
     dx = opts.get("dx_mm", (QUICK_DX if quick else FULL_DX) * 1e3) * 1e-3
-    kw = {k: opts[k] for k in ("hdx", "cfl", "av_alpha", "av_beta", "wall_layers", "noslip") if k in opts}
+    kw = {k: opts[k] for k in ("hdx", "cfl", "av_alpha", "av_beta", "wall_layers", "noslip", "boundary")
+          if k in opts}
     if "settle_time_s" in opts:
         kw["settle_time"] = opts["settle_time_s"]
     if "lowpass_hz" in opts:
@@ -388,8 +399,11 @@ def _resolve_sph(opts: dict) -> dict:
             raise InputError(f"model.{k}", f"must be > 0 cm, got {opts[k]!r}")
     out = {"name": "sph", "medium": medium, "quick": quick, "dx_mm": _canon(cfg.dx * 1e3), "hdx": _canon(cfg.hdx),
            "cfl": _canon(cfg.cfl), "av_alpha": _canon(cfg.av_alpha), "av_beta": _canon(cfg.av_beta),
-           "wall_layers": int(cfg.wall_layers), "noslip": bool(cfg.noslip),
+           "wall_layers": int(cfg.wall_layers), "noslip": bool(cfg.noslip), "boundary": cfg.boundary,
            "thickness_cm": _canon(opts.get("thickness_cm", LEG_THICKNESS / CM))}
+    for k in ("friction_deg", "density_kg_m3"):
+        if k in opts:
+            out[k] = _canon(opts[k])
     if cfg.settle_time is not None:
         out["settle_time_s"] = _canon(cfg.settle_time)
     if cfg.lowpass_hz is not None:
