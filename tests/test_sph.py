@@ -523,3 +523,44 @@ def test_grains_thrown_out_of_the_container_are_dropped_not_fatal():
     for _ in range(20):
         s.step()
     assert np.isfinite(s.x[s.sidx]).all()
+
+
+def test_sph_layers_import_downwards_only_and_backends_share_one_interface():
+    """The layers of terradyn.sph (state -> source -> neighbours -> physics -> cpu / gpu ->
+    solver) import only downwards at module level (no circles; state imports nothing of the
+    solver), the physics reads its scalars by name (no positional tuples), the solver has no
+    attribute hand-off, and both backends have the same small interface."""
+    import ast
+    import importlib
+    import inspect
+    from pathlib import Path
+
+    from terradyn.sph import cpu, physics, source, state
+
+    root = Path(state.__file__).parent
+    order = ["materials", "state", "source", "neighbours", "physics", "cpu", "gpu", "solver",
+             "scenes"]
+    for name in order:
+        tree = ast.parse((root / f"{name}.py").read_text())
+        deps = {a.module.split(".")[0] for a in tree.body
+                if isinstance(a, ast.ImportFrom) and a.level == 1 and a.module}
+        deps |= {al.name for a in tree.body if isinstance(a, ast.ImportFrom) and a.level == 1
+                 and not a.module for al in a.names}
+        above = set(order[:order.index(name)])
+        assert deps <= above | {"calibration"}, (name, deps - above)
+    # no magic indices into parameter tuples in the physics and the CPU loops
+    import re
+
+    for mod in (physics, cpu):
+        text = inspect.getsource(mod)
+        assert not re.search(r"\b(par|pp|fp|ip|grid|grav)\[\d", text), mod.__name__
+    # the GPU's device namespace: every module that defines sources
+    assert {"terradyn.sph.neighbours", "terradyn.sph.physics"} <= set(source.SOURCE_MODULES)
+    assert not hasattr(solver.Solver, "__getattr__")
+    gpu_src = (root / "gpu.py").read_text()
+    for meth in ("steps", "drop_lost", "to_host"):
+        assert callable(getattr(cpu.CPUBackend, meth)) and f"def {meth}(self" in gpu_src
+    s = solver.Solver(scenes.bed_scene(width=0.03, depth=0.015, dx=5e-3, settle_time=0.0))
+    s.advance(3)
+    assert s.state is s and s.x is s.state.x  # CPU: the arrays are the state
+    assert importlib.import_module("terradyn.sph.kernels").cpu_steps is cpu.cpu_steps

@@ -60,6 +60,7 @@ _CHECKS = textwrap.dedent(r'''
     for b in ("cpu", "gpu"):
         s = solver.Solver(scene(b))
         f = [s.step() for _ in range(nsteps)]
+        s.sync_to_host()  # the GPU backend's arrays here are current after this (CPU: no-op)
         sid = s.sidx
         res[b] = {"backend": s.backend_name, "n": s.n, "soil": len(sid), "F": np.array(f),
                   "x": s.x[sid], "z": s.z[sid], "vx": s.vx[sid], "rho": s.rho[sid],
@@ -88,6 +89,7 @@ _CHECKS = textwrap.dedent(r'''
     s = solver.Solver(scenes.bed_scene(width=0.03, depth=0.015, dx=5e-3, settle_time=0.0,
                                        wall_layers=2, backend="gpu"))
     s.step()
+    s.sync_to_host()
     i = int(s.sidx[3])
     x0, z0 = s.x.copy(), s.z.copy()
     s.szz[i] = np.nan  # an edit on the host: goes to the device before the next step
@@ -107,6 +109,7 @@ _CHECKS = textwrap.dedent(r'''
     s.x[i], s.z[i] = 0.0, -0.2
     s.step()
     s._drop_lost()
+    s.sync_to_host()
     out["dropped"] = [int(s.lost), n0 - len(s.sidx), int(s.kind[i]), float(s.x[i])]
 
     # 5. run() on the GPU backend: force record and snapshots
@@ -169,14 +172,17 @@ _PTX = textwrap.dedent(r'''
     if not cuda.is_available():  # device functions ask the current device for its arch
         disp.get_current_device = lambda: types.SimpleNamespace(compute_capability=(9, 0))
     from terradyn.sph import gpu as G
+    from terradyn.sph.neighbours import neighbour_list
+    from terradyn.sph.physics import Gravity, Grid, StrainPar
+    from terradyn.sph.source import SOURCES
     n, nc = 100, 50
     S, srt, srtk = np.zeros((18, n)), np.zeros((11, n)), np.zeros((3, n))
     kind, bad, fleg, acc = np.zeros(n, np.int8), np.zeros(n, np.int8), np.zeros((n, 3)), np.zeros(4)
     i32 = lambda m: np.zeros(m, np.int32)
-    nb = G.K.neighbour_list(n, 1.3)
-    grid = (1.0, 1.0, 1.0, 1.0, 3, 4)
-    par_s = grid + (1.0,) * 8 + (True,)
-    par_a = G.K.SOURCES["_accel_par"](*(1.0,) * 4, True, *(1.0,) * 13, 3, 4, 1.0, 1.0, 1.0)
+    nb = neighbour_list(n, 1.3)
+    grid = Grid(1.0, 1.0, 1.0, 1.0, 3, 4)
+    par_s = StrainPar(*grid, *(1.0,) * 8, True)
+    par_a = SOURCES["_accel_par"](*(1.0,) * 4, True, *(1.0,) * 13, 3, 4, 1.0, 1.0, 1.0)
     args = {
         "_k_count": (S, 1.0, 1.0, 1.0, 3, 4, i32(nc), i32(n), i32(n)),
         "_k_scan_blocks": (i32(nc), i32(nc), i32(4), i32(64), 1),
@@ -185,7 +191,7 @@ _PTX = textwrap.dedent(r'''
         "_k_scatter": (i32(n), i32(n), i32(nc + 1), i32(n)),
         "_k_sort_cells": (i32(nc + 1), i32(n)),
         "_k_place": (S, i32(10), np.zeros((4, 10)), *(1.0,) * 10),
-        "_k_boundary": (S, kind, i32(10), (1.0, 1.0), grid, i32(nc + 1), i32(n), True, *nb[:2],
+        "_k_boundary": (S, kind, i32(10), Gravity(1.0, 1.0), grid, i32(nc + 1), i32(n), True, *nb[:2],
                         True),
         "_k_gather": (i32(n), S, kind, srt, srtk),
         "_k_regather": (i32(n), S, kind, srt),

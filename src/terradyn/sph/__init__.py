@@ -8,7 +8,8 @@ Kernels: Numba, multi-threaded (the threading layer and its spin policy: see
 """
 from .api import FULL_DX, QUICK_DX, simulate, simulate_speeds, snapshots_dataset
 from .materials import MATERIALS, GranularMaterial, from_medium, material
-from .solver import SPHConfig, SPHInstabilityError, Scene, Solver, run
+from .solver import Solver, run
+from .state import SPHConfig, SPHInstabilityError, Scene
 
 __all__ = ["simulate", "simulate_speeds", "snapshots_dataset", "FULL_DX", "QUICK_DX",
            "MATERIALS", "GranularMaterial", "from_medium", "material", "SPHConfig",

@@ -13,7 +13,8 @@ from ..series import force_series
 from ..units import DEG
 from .materials import GranularMaterial, material as _material
 from .scenes import LEG_THICKNESS, _body_to_world, _centre_line, contact_window, leg_scene
-from .solver import RunResult, SPHConfig, lowpass, run
+from .solver import RunResult, lowpass, run
+from .state import SPHConfig
 
 #: Particle spacing of the full runs (m) and of the quick form used by tests.
 FULL_DX = 2.5e-3

@@ -55,7 +55,7 @@ def plate_slope(mat, *, dx: float = 4e-3, config=None, realizations: int = 1) ->
 
     import numpy as np
 
-    from .solver import SPHConfig
+    from .state import SPHConfig
     from .validation import plate_push
 
     cfg = config or SPHConfig(dx=dx)

@@ -1,5 +1,8 @@
-"""GPU backend of the SPH solver (Numba CUDA): the kernels of :mod:`terradyn.sph.kernels`,
-compiled from the same source as CUDA device functions.
+"""GPU backend of the SPH solver (Numba CUDA): the one-source physics of
+:mod:`terradyn.sph.physics` and :mod:`terradyn.sph.neighbours`, compiled as CUDA device
+functions, in one-thread-per-particle loops; :class:`GPUBackend` has the interface of
+:class:`terradyn.sph.cpu.CPUBackend` (``GPUBackend(solver)``, ``steps``, ``drop_lost``,
+``to_host``).
 
 Import this module only when the GPU backend is asked for: it imports ``numba.cuda``.
 Under ``NUMBA_ENABLE_CUDASIM=1`` (set before numba.cuda is first imported) everything here
@@ -7,7 +10,7 @@ runs in Numba's CUDA simulator, on the CPU, without a GPU; that is how the tests
 
 Design:
 
-* one source: every per-particle function in :data:`terradyn.sph.kernels.SOURCES` is compiled
+* one source: every per-particle function in :data:`terradyn.sph.source.SOURCES` is compiled
   here with ``cuda.jit(device=True)`` (its global names re-bound to the device versions), and
   each ``@cuda.jit`` kernel below is a thin one-thread-per-particle wrapper around it;
 * the particle state stays on the device across steps, in one (18, N) float64 array ``S``
@@ -25,12 +28,20 @@ Design:
 from __future__ import annotations
 
 import math
+import sys
 import types
 
 import numpy as np
 from numba import config, cuda
 
-from . import kernels as K
+from .neighbours import (SKIN, SRT, SRT_NOX, SRT_NOZ, SRT_PXX, SRT_PXZ, SRT_PZZ, SRT_RHO,
+                         SRT_VOL, SRT_VX, SRT_VZ, SRT_X, SRT_Z, SRTK, SRTK_DCL, SRTK_GRD,
+                         SRTK_KIND, neighbour_list)
+from .physics import FLEG_TQ, FLEG_X, FLEG_Z, Gravity, Grid, StrainPar
+from .source import SOURCE_MODULES, SOURCES
+from .state import (BODY, BODY_BNX, BODY_BNZ, BODY_BX, BODY_BZ, LOST, POSE_ALPHA, POSE_ANGLE,
+                    POSE_HIP_AX, POSE_HIP_AZ, POSE_HIP_VX, POSE_HIP_VZ, POSE_HIP_X, POSE_HIP_Z,
+                    POSE_OMEGA, SOIL)
 
 SIM = bool(config.ENABLE_CUDASIM)
 #: Threads per block. Every kernel loops over its items with a grid stride: on a GPU it is
@@ -48,17 +59,20 @@ MAX_CELL_SORT = 128
 ROWS = ("x", "z", "vx", "vz", "rho", "sxx", "szz", "sxz", "syy", "gvx", "gvz", "acc_x", "acc_z",
         "nox", "noz", "dcl", "guard", "mass")
 (X, Z, VX, VZ, RHO, SXX, SZZ, SXZ, SYY, GVX, GVZ, AX, AZ, NOX, NOZ, DCL, GRD, MASS) = range(18)
-#: Rows that the device changes (copied back by :meth:`GPUBackend.sync_to_host`).
+#: Rows that the device changes (copied back by :meth:`GPUBackend.to_host`).
 CHANGING = ROWS[:15]
 
 
 def _device_functions() -> dict:
     """The one-source functions compiled as CUDA device functions: each plain function gets a
-    namespace (the kernels module's constants) in which the names of the other sources are
-    their device versions."""
-    ns = dict(vars(K))
+    namespace, the union of the modules that define sources (:data:`SOURCE_MODULES`: their
+    constants, named tuples, math), in which the names of the other sources are their device
+    versions."""
+    ns = {}
+    for mod in SOURCE_MODULES:
+        ns.update(vars(sys.modules[mod]))
     out = {}
-    for name, fn in K.SOURCES.items():
+    for name, fn in SOURCES.items():
         f = types.FunctionType(fn.__code__, ns, name, fn.__defaults__, fn.__closure__)
         f.__doc__ = fn.__doc__
         ns[name] = out[name] = cuda.jit(device=True)(f)
@@ -74,7 +88,6 @@ _strain_stress_one = _D["_strain_stress_one"]
 _accel_kick_one = _D["_accel_kick_one"]
 _place_one = _D["_place_one"]
 _side_one = _D["_side_one"]
-SOIL, LOST = K.SOIL, K.LOST
 
 
 def _blocks(n: int) -> int:
@@ -223,7 +236,7 @@ class DeviceBins:
 
 
 def bin_particles(x, z, xmin, zmin, inv_cell, ncx, ncz):
-    """:func:`terradyn.sph.kernels.bin_particles` on the device (for tests): returns host
+    """:func:`terradyn.sph.neighbours.bin_particles` on the device (for tests): returns host
     (cell_start, cell_index)."""
     n = len(x)
     S = cuda.to_device(np.ascontiguousarray(np.stack([x, z]), dtype=np.float64))
@@ -238,8 +251,8 @@ def bin_particles(x, z, xmin, zmin, inv_cell, ncx, ncz):
 def _k_place(S, lidx, body, c, s, hip_x, hip_z, hip_vx, hip_vz, hip_ax, hip_az, omega, alpha):
     for kk in range(cuda.grid(1), lidx.shape[0], cuda.gridsize(1)):
         _place_one(kk, c, s, S[X], S[Z], S[VX], S[VZ], S[AX], S[AZ], S[NOX], S[NOZ], lidx,
-                   body[0], body[1], body[2], body[3], hip_x, hip_z, hip_vx, hip_vz, hip_ax,
-                   hip_az, omega, alpha)
+                   body[BODY_BX], body[BODY_BZ], body[BODY_BNX], body[BODY_BNZ], hip_x, hip_z,
+                   hip_vx, hip_vz, hip_ax, hip_az, omega, alpha)
 
 
 @cuda.jit
@@ -273,15 +286,16 @@ def _k_regather(cell_index, S, kind, srt):
 @cuda.jit
 def _k_strain(srt, srtk, cell_index, cell_start, S, vj, vn, nbj, nbw, nbn, par):
     for k in range(cuda.grid(1), cell_index.shape[0], cuda.gridsize(1)):
-        _strain_stress_one(k, srt[0], srt[1], srt[2], srt[3], srt[7], srt[8], srt[9], srt[10],
-                           srtk[0], srtk[1], cell_index, cell_start, S[RHO], S[SXX], S[SZZ],
+        _strain_stress_one(k, srt[SRT_X], srt[SRT_Z], srt[SRT_VX], srt[SRT_VZ], srt[SRT_VOL],
+                           srt[SRT_RHO], srt[SRT_NOX], srt[SRT_NOZ], srtk[SRTK_KIND],
+                           srtk[SRTK_DCL], cell_index, cell_start, S[RHO], S[SXX], S[SZZ],
                            S[SXZ], S[SYY], vj, vn, nbj, nbw, nbn, par)
 
 
 @cuda.jit
 def _k_disp(S, xb, zb, dmax, acc):
     """dmax[0] = max over particles of the squared distance from the last list build (see
-    :func:`terradyn.sph.kernels.max_displacement2`); dmax[0] must be 0 before. Also zeroes
+    :func:`terradyn.sph.neighbours.max_displacement2`); dmax[0] must be 0 before. Also zeroes
     ``acc`` (the step's sums; the binning, which did that, no longer runs every step)."""
     t = cuda.grid(1)
     if t < acc.shape[0]:
@@ -307,17 +321,19 @@ def _k_mark(S, xb, zb):
 def _k_accel(srt, srtk, cell_index, cell_start, S, fleg, bad, nbj, nbw, nbn, par, acc):
     """Pass 2 for one particle; acc[0:3] += its force on the leg, acc[3] += 1 if unstable."""
     for k in range(cuda.grid(1), cell_index.shape[0], cuda.gridsize(1)):
-        nb = _accel_kick_one(k, srt[0], srt[1], srt[2], srt[3], srt[4], srt[5], srt[6], srt[7],
-                             srt[8], srt[9], srt[10], srtk[0], srtk[1], srtk[2], cell_index,
+        nb = _accel_kick_one(k, srt[SRT_X], srt[SRT_Z], srt[SRT_VX], srt[SRT_VZ], srt[SRT_PXX],
+                             srt[SRT_PZZ], srt[SRT_PXZ], srt[SRT_VOL], srt[SRT_RHO],
+                             srt[SRT_NOX], srt[SRT_NOZ], srtk[SRTK_KIND], srtk[SRTK_DCL],
+                             srtk[SRTK_GRD], cell_index,
                              cell_start, S[MASS], S[X], S[Z], S[VX], S[VZ], S[RHO], S[SXX],
                              S[SZZ], fleg, bad, (nbj, nbw, nbn), par)
         if nb != 0:
             cuda.atomic.add(acc, 3, 1.0)
-        if srtk[0, k] == SOIL:
+        if srtk[SRTK_KIND, k] == SOIL:
             i = cell_index[k]
-            fx = fleg[i, 0]
-            fz = fleg[i, 1]
-            tq = fleg[i, 2]
+            fx = fleg[i, FLEG_X]
+            fz = fleg[i, FLEG_Z]
+            tq = fleg[i, FLEG_TQ]
             if fx != 0.0 or fz != 0.0 or tq != 0.0:
                 cuda.atomic.add(acc, 0, fx)
                 cuda.atomic.add(acc, 1, fz)
@@ -338,9 +354,9 @@ def _k_drop(S, kind, fleg, x0, x1, z0, cnt):
             S[Z, i] = 1e3
             for r in (VX, VZ, SXX, SZZ, SXZ, SYY):
                 S[r, i] = 0.0
-            fleg[i, 0] = 0.0
-            fleg[i, 1] = 0.0
-            fleg[i, 2] = 0.0
+            fleg[i, FLEG_X] = 0.0
+            fleg[i, FLEG_Z] = 0.0
+            fleg[i, FLEG_TQ] = 0.0
             cuda.atomic.add(cnt, 0, 1)
 
 
@@ -348,10 +364,11 @@ def _k_drop(S, kind, fleg, x0, x1, z0, cnt):
 class GPUBackend:
     """Keeps a :class:`~terradyn.sph.solver.Solver`'s particles on the GPU and advances them.
 
-    The solver's host arrays (:data:`terradyn.sph.solver.DEVICE_OWNED`) are detached while the
-    device holds newer data; reading any of them copies the state back
-    (:meth:`sync_to_host`), and the next step copies the host's (possibly edited) arrays back
-    to the device first."""
+    The solver's host arrays (:data:`terradyn.sph.solver.DEVICE_OWNED`) and the device state
+    take turns holding the newer data: after :meth:`to_host` (which the solver's
+    ``sync_to_host`` calls) the host's arrays are current and the next :meth:`steps` or
+    :meth:`drop_lost` copies them, edits included, to the device first; after a step the
+    device's are, until the next :meth:`to_host`. At construction the host's are current."""
 
     name = "gpu"
 
@@ -363,9 +380,9 @@ class GPUBackend:
         self.kind = cuda.device_array(n, np.int8)
         self.fleg = cuda.device_array((n, 3), np.float64)
         self.bad = cuda.device_array(n, np.int8)
-        self.srt = cuda.device_array((11, n), np.float64)
-        self.srtk = cuda.device_array((3, n), np.float64)
-        self.nb = tuple(cuda.to_device(a) for a in K.neighbour_list(n, s.scene.config.hdx))
+        self.srt = cuda.device_array((len(SRT), n), np.float64)
+        self.srtk = cuda.device_array((len(SRTK), n), np.float64)
+        self.nb = tuple(cuda.to_device(a) for a in neighbour_list(n, s.scene.config.hdx))
         self.xb = cuda.to_device(np.full(n, np.inf))  # positions at the last list build
         self.zb = cuda.to_device(np.full(n, np.inf))
         self.dmax = cuda.device_array(1, np.float64)
@@ -377,54 +394,63 @@ class GPUBackend:
         self.nbnd = len(bidx)
         self.bidx = cuda.to_device(bidx if len(bidx) else np.zeros(1, np.int32))
         self.bnb = tuple(cuda.to_device(a) for a in
-                         K.neighbour_list(max(self.nbnd, 1), s.scene.config.hdx)[:2])
+                         neighbour_list(max(self.nbnd, 1), s.scene.config.hdx)[:2])
         self.nleg = len(s.lidx)
         leg = s.scene.leg
         if self.nleg:
             self.lidx = cuda.to_device(s.lidx.astype(np.int32))
             self.body = cuda.to_device(np.ascontiguousarray(
-                np.stack([leg.bx, leg.bz, leg.bnx, leg.bnz]), dtype=np.float64))
+                np.stack([getattr(leg, r) for r in BODY]), dtype=np.float64))
         if s.sides:
             self.cl = cuda.to_device(np.ascontiguousarray(leg.centre, dtype=np.float64))
             self.clbox = cuda.to_device(leg.side_box(s.side_reach))
-        self.upload(vars(s))  # the solver detaches its copies once this returns
+        self.host_current = True  # the solver's arrays hold the state: uploaded at first use
 
     # ---------------------------------------------------------------------- host <-> device
-    def upload(self, arrays) -> None:
-        """Copy the host arrays (a mapping name -> array) to the device."""
-        self.S.copy_to_device(np.ascontiguousarray(np.stack([arrays[r] for r in ROWS]),
+    def _upload(self) -> None:
+        """Copy the solver's arrays to the device."""
+        s = self.s
+        self.S.copy_to_device(np.ascontiguousarray(np.stack([getattr(s, r) for r in ROWS]),
                                                    dtype=np.float64))
-        self.kind.copy_to_device(np.ascontiguousarray(arrays["kind"], dtype=np.int8))
-        self.fleg.copy_to_device(np.ascontiguousarray(arrays["fleg"], dtype=np.float64))
-        self.bad.copy_to_device(np.ascontiguousarray(arrays["bad"], dtype=np.int8))
+        self.kind.copy_to_device(np.ascontiguousarray(s.kind, dtype=np.int8))
+        self.fleg.copy_to_device(np.ascontiguousarray(s.fleg, dtype=np.float64))
+        self.bad.copy_to_device(np.ascontiguousarray(s.bad, dtype=np.int8))
 
-    def sync_to_host(self, arrays) -> None:
-        """Copy the device state into the host arrays (a mapping name -> array, written in
-        place); ``arrays["sidx"]`` is replaced by the granular ids."""
+    def to_host(self) -> None:
+        """Bring the solver's arrays up to date: copy the device state into them (in place;
+        ``sidx`` is replaced by the granular ids). A no-op while they are current."""
+        if self.host_current:
+            return
+        s = self.s
         H = self.S.copy_to_host()
         for r, name in enumerate(CHANGING):
-            arrays[name][:] = H[r]
-        arrays["kind"][:] = self.kind.copy_to_host()
-        arrays["fleg"][:] = self.fleg.copy_to_host()
-        arrays["bad"][:] = self.bad.copy_to_host()
-        arrays["cell_start"][:] = self.bins.cell_start.copy_to_host()
-        arrays["cell_index"][:] = self.bins.cell_index.copy_to_host()[:self.n]
-        arrays["sidx"] = np.flatnonzero(arrays["kind"] == K.SOIL).astype(np.int64)
+            getattr(s, name)[:] = H[r]
+        s.kind[:] = self.kind.copy_to_host()
+        s.fleg[:] = self.fleg.copy_to_host()
+        s.bad[:] = self.bad.copy_to_host()
+        s.cell_start[:] = self.bins.cell_start.copy_to_host()
+        s.cell_index[:] = self.bins.cell_index.copy_to_host()[:self.n]
+        s.sidx = np.flatnonzero(s.kind == SOIL).astype(np.int64)
+        self.host_current = True
 
-    def reclaim(self) -> None:
-        """If the solver's host arrays are attached (read since the last step, maybe edited),
-        copy them to the device and detach them again."""
-        s = self.s
-        if s.__dict__.get("_held") is None:
-            self.upload(vars(s))
-            s._detach()
+    def _to_device(self) -> None:
+        """Before device work: if the solver's arrays are current (maybe edited), upload them;
+        from then on the device holds the state."""
+        if self.host_current:
+            self._upload()
+            self.host_current = False
 
     # ---------------------------------------------------------------------------- stepping
     def place(self, pose) -> None:
-        self.reclaim()
+        """Put the leg at ``pose`` (a row of :data:`~.state.POSE`) and, with the resolved
+        boundary, find the granular particles' sides of it."""
+        self._to_device()
         if not self.nleg:
             return
-        hip_x, hip_z, hip_vx, hip_vz, hip_ax, hip_az, ang, omega, alpha = (float(v) for v in pose)
+        hip_x, hip_z = pose[POSE_HIP_X], pose[POSE_HIP_Z]
+        hip_vx, hip_vz = pose[POSE_HIP_VX], pose[POSE_HIP_VZ]
+        hip_ax, hip_az = pose[POSE_HIP_AX], pose[POSE_HIP_AZ]
+        ang, omega, alpha = pose[POSE_ANGLE], pose[POSE_OMEGA], pose[POSE_ALPHA]
         _k_place[_blocks(self.nleg), TPB](self.S, self.lidx, self.body, math.cos(ang),
                                           math.sin(ang), hip_x, hip_z, hip_vx, hip_vz, hip_ax,
                                           hip_az, omega, alpha)
@@ -443,7 +469,7 @@ class GPUBackend:
         """Pass 1 and 2 of one step (the leg is placed already); returns (number of unstable
         particles, (Fx, Fz, torque) on the leg per unit depth)."""
         s = self.s
-        self.reclaim()
+        self._to_device()
         mat = s.scene.material
         cfg = s.scene.config
         gx, gz = (float(g) for g in s.scene.gravity)
@@ -456,27 +482,32 @@ class GPUBackend:
         # Verlet list: rebuilt (and the cells re-binned) as on the CPU backend
         self.dmax.copy_to_device(np.zeros(1))
         _k_disp[nb, TPB](self.S, self.xb, self.zb, self.dmax, self.acc)
-        build = bool(self.dmax.copy_to_host()[0] > (0.5 * K.SKIN * h) ** 2)
+        build = bool(self.dmax.copy_to_host()[0] > (0.5 * SKIN * h) ** 2)
         if build:
             b.run(self.S, xmin, zmin, inv_cell, ncx, ncz, self.acc)
             _k_mark[nb, TPB](self.S, self.xb, self.zb)
             self.builds += 1
-        grid = (h, xmin, zmin, inv_cell, ncx, ncz)
-        grav = (gx, gz)
+        grid = Grid(h=h, xmin=xmin, zmin=zmin, inv_cell=inv_cell, ncx=ncx, ncz=ncz)
+        grav = Gravity(gx=gx, gz=gz)
         noslip = bool(cfg.noslip)
         self._boundaries(grav, grid, noslip, build)
         _k_gather[nb, TPB](b.cell_index, self.S, self.kind, self.srt, self.srtk)
-        par = (h, xmin, zmin, inv_cell, ncx, ncz, dt, float(mat.shear_modulus),
-               float(mat.bulk_modulus), float(mat.alpha_phi), float(mat.k_c),
-               float(0.9 * mat.density), float(1.1 * mat.density),
-               float((2.0 + K.SKIN) * h), build)
+        par = StrainPar(h=h, xmin=xmin, zmin=zmin, inv_cell=inv_cell, ncx=ncx, ncz=ncz, dt=dt,
+                        shear_mod=float(mat.shear_modulus), bulk_mod=float(mat.bulk_modulus),
+                        alpha_phi=float(mat.alpha_phi), k_c=float(mat.k_c),
+                        rho_min=float(0.9 * mat.density), rho_max=float(1.1 * mat.density),
+                        rlist=float((2.0 + SKIN) * h), build=build)
         _k_strain[nb, TPB](self.srt, self.srtk, b.cell_index, b.cell_start, self.S, *self.nb,
                            par)
         self._boundaries(grav, grid, noslip, False)
         _k_regather[nb, TPB](b.cell_index, self.S, self.kind, self.srt)
-        hip_x, hip_z, hip_vx, hip_vz = (float(v) for v in pose[:4]) if pose else (0.0,) * 4
-        omega = float(pose[7]) if pose else 0.0
-        par = K.SOURCES["_accel_par"](
+        if pose is None:
+            hip_x = hip_z = hip_vx = hip_vz = omega = 0.0
+        else:
+            hip_x, hip_z = pose[POSE_HIP_X], pose[POSE_HIP_Z]
+            hip_vx, hip_vz = pose[POSE_HIP_VX], pose[POSE_HIP_VZ]
+            omega = pose[POSE_OMEGA]
+        par = SOURCES["_accel_par"](
             h, float(s.c0), float(cfg.av_alpha), float(cfg.av_beta), bool(cfg.av_boundary), gx,
             gz, hip_x, hip_z, hip_vx, hip_vz, omega, float(s.half_t), float(s.gap),
             float(0.1 * cfg.dx), xmin, zmin, inv_cell, ncx, ncz, dt, float(damping),
@@ -488,7 +519,7 @@ class GPUBackend:
 
     def steps(self, poses, dampings, forces):
         """Advance len(poses) steps, each launched from Python (see
-        :meth:`terradyn.sph.solver.CPUBackend.steps`); returns (steps done, unstable
+        :meth:`terradyn.sph.cpu.CPUBackend.steps`); returns (steps done, unstable
         particles)."""
         leg = self.nleg > 0
         for i in range(len(poses)):
@@ -503,7 +534,9 @@ class GPUBackend:
         return len(poses), 0
 
     def drop_lost(self, box) -> int:
-        self.reclaim()
+        """Granular particles outside the container box (x0, x1, z0) become LOST, on the
+        device; returns how many."""
+        self._to_device()
         x0, x1, z0 = (float(v) for v in box)
         self.cnt.copy_to_device(np.zeros(1, np.int32))
         _k_drop[_blocks(self.n), TPB](self.S, self.kind, self.fleg, x0, x1, z0, self.cnt)

@@ -15,9 +15,8 @@ from ..errors import InputError, positive
 from ..geometry import Leg
 from ..motion import Trajectory
 from ..units import CM, G
-from .kernels import LEG, SOIL, WALL
 from .materials import GranularMaterial, material as _material
-from .solver import Particles, RigidBody, Scene, SPHConfig
+from .state import LEG, SOIL, WALL, Particles, RigidBody, Scene, SPHConfig
 
 #: Thickness of the standard legs (thesis ch. 2: 0.64 cm).
 LEG_THICKNESS = 0.64 * CM
@@ -146,7 +145,7 @@ def _centre_line(leg: Leg, dx: float):
 
 def centre_polyline(leg: Leg, dx: float) -> np.ndarray:
     """(2, m) body-frame centre line of the leg from hip to tip at spacing ~dx/2, ends
-    included (for the side test of :func:`terradyn.sph.kernels._side_one`)."""
+    included (for the side test of :func:`terradyn.sph.physics._side_one`)."""
     P, T, L = _centre_line(leg, 0.5 * dx)
     d = 0.5 * L / len(P)  # _centre_line gives mid-points: put the two ends back
     P = np.concatenate([P[:1] - d * T[:1], P, P[-1:] + d * T[-1:]])

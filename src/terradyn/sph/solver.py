@@ -1,9 +1,17 @@
-"""The SPH solver: particle sets, the time loop, force recording, checkpoints.
+"""The SPH solver: the time loop, force recording, checkpoints.
 
-A :class:`Scene` holds the particles (granular bed, fixed walls, optional rigid leg with its
-trajectory); :class:`Solver` advances it with the compiled kernels of
-:mod:`terradyn.sph.kernels` (symplectic Euler; time step from the CFL condition
+A :class:`~.state.Scene` holds the particles (granular bed, fixed walls, optional rigid leg with
+its trajectory); :class:`Solver` advances it on a backend (:class:`~.cpu.CPUBackend` or
+:class:`~.gpu.GPUBackend`; symplectic Euler; time step from the CFL condition
 dt = cfl * h / (c + v_max), c the P-wave speed, cfl = 0.2 after Bui et al. 2008).
+
+The layers of :mod:`terradyn.sph`: :mod:`~.state` (config and state types, particle kinds),
+:mod:`~.source` (the one-source registry), :mod:`~.neighbours` (cells, Verlet lists,
+binning), :mod:`~.physics` (per-particle and per-pair physics, written once),
+:mod:`~.cpu` and :mod:`~.gpu` (the loops around them, one backend each), this module (the
+time loop over a backend). Every backend has one interface: ``Backend(solver)``,
+``steps(poses, dampings, forces) -> (done, nbad)``, ``drop_lost(box) -> count``,
+``to_host()`` (bring the solver's arrays up to date).
 """
 from __future__ import annotations
 
@@ -13,28 +21,26 @@ import math
 import os
 import uuid
 import zipfile
-from dataclasses import asdict, dataclass, field
+from dataclasses import asdict, dataclass
 from pathlib import Path
 from typing import Callable
 
 import numpy as np
 
-from ..errors import InputError, in_range, integer, positive
-from ..motion import Trajectory
-from ..units import G
-from . import kernels as K
-from .materials import GranularMaterial
+from ..errors import InputError, integer
+from .cpu import CPUBackend
+from .neighbours import REACH, SKIN
+from .state import (BACKENDS, BOUNDARIES, LEG, LOST, POSE_ALPHA, POSE_HIP_AZ, POSE_HIP_VX,
+                    POSE_OMEGA, SOIL, WALL, Particles, RigidBody, Scene, SPHConfig,
+                    SPHInstabilityError)
 
+__all__ = ["BACKENDS", "BOUNDARIES", "CPUBackend", "LEG", "LOST", "Particles", "RigidBody",
+           "RunResult", "SOIL", "SPHConfig", "SPHInstabilityError", "Scene", "Solver", "WALL",
+           "check_checkpoint", "gpu_available", "lowpass", "resolve_backend", "run",
+           "scene_key", "warmup"]
 
-#: SPHConfig.backend values.
-BACKENDS = ("cpu", "gpu", "auto")
-#: SPHConfig.boundary values: "resolved" (the leg's own thickness, material on its two sides
-#: kept apart, a contact guard at ``contact_gap`` dx, default 1/4) or "guard" (the model
-#: before issue 17: no side test, grains held max(dx/4, h - t/2) off the surface).
-BOUNDARIES = ("resolved", "guard")
-#: Solver arrays that the GPU backend keeps on the device between steps: on that backend they
-#: are detached from the solver while the device holds newer data, and reading one copies the
-#: whole state back (see :meth:`Solver.__getattr__`).
+#: Solver arrays that a backend may hold newer data of than the host (the GPU's): up to date
+#: after :meth:`Solver.sync_to_host` (or through :attr:`Solver.state`).
 DEVICE_OWNED = ("x", "z", "vx", "vz", "rho", "sxx", "szz", "sxz", "syy", "gvx", "gvz", "acc_x",
                 "acc_z", "nox", "noz", "kind", "fleg", "bad", "sidx", "cell_start", "cell_index")
 
@@ -64,158 +70,14 @@ def resolve_backend(name: str) -> str:
     return "gpu" if ok else "cpu"
 
 
-class SPHInstabilityError(RuntimeError):
-    """The run went unstable: non-finite values or a particle faster than the sound speed."""
-
-    def __init__(self, step: int, time: float, particle: int, position, reason: str):
-        self.step, self.time, self.particle, self.position, self.reason = step, time, particle, position, reason
-        super().__init__(f"SPH run unstable at step {step} (t = {time:.6g} s): particle {particle} "
-                         f"at (x, z) = ({position[0]:.4g}, {position[1]:.4g}) m: {reason}. "
-                         "Try a smaller --cfl, a finer resolution or a slower motion.")
-
-
-@dataclass(frozen=True)
-class SPHConfig:
-    """Numerical parameters. dx: particle spacing (m); hdx: smoothing length / dx (Wendland C2,
-    support 2h); cfl: Courant number; av_alpha, av_beta: Monaghan artificial viscosity (between granular particles; also on
-    wall/leg pairs if av_boundary);
-    wall_layers: layers of dummy particles; noslip: no-slip (True) or free-slip walls and leg;
-    settle_time: damped settling before the motion starts (s; None: 15 bed-depth / sound-speed
-    transits); lowpass_hz: optional zero-phase Butterworth low-pass of the recorded forces
-    (None: raw); threads: CPU threads (None: Numba's default); backend: "cpu" (Numba,
-    multi-threaded), "gpu" (Numba CUDA, :mod:`terradyn.sph.gpu`; an NVIDIA GPU and the
-    ``gpu`` extra are needed) or "auto" (the GPU when one is usable, else the CPU)."""
-
-    dx: float = 2.5e-3
-    hdx: float = 1.3
-    cfl: float = 0.2
-    av_alpha: float = 0.1
-    av_beta: float = 0.0
-    av_boundary: bool = False
-    wall_layers: int = 3
-    noslip: bool = True
-    settle_time: float | None = None
-    lowpass_hz: float | None = None
-    threads: int | None = None
-    backend: str = "cpu"
-    boundary: str = "resolved"
-    contact_gap: float | None = None
-
-    def __post_init__(self):
-        positive("dx", self.dx, "m")
-        in_range("hdx", self.hdx, 1.0, 2.5)
-        in_range("cfl", self.cfl, 1e-3, 0.5)
-        in_range("av-alpha", self.av_alpha, 0.0, 5.0)
-        in_range("av-beta", self.av_beta, 0.0, 5.0)
-        integer("wall-layers", self.wall_layers, 2)
-        if self.settle_time is not None:
-            in_range("settle-time", self.settle_time, 0.0, 100.0, "s")
-        if self.lowpass_hz is not None:
-            positive("lowpass", self.lowpass_hz, "Hz")
-        if self.boundary not in BOUNDARIES:
-            raise InputError("boundary", f"must be one of {', '.join(map(repr, BOUNDARIES))}, "
-                                         f"got {self.boundary!r}")
-        if self.contact_gap is not None:
-            in_range("contact-gap", self.contact_gap, 0.0, 1.0, "dx")
-        if self.backend not in BACKENDS:
-            raise InputError("backend", f"must be one of {', '.join(map(repr, BACKENDS))}, "
-                                        f"got {self.backend!r}")
-
-    @property
-    def h(self) -> float:
-        return self.hdx * self.dx
-
-
-@dataclass
-class Particles:
-    """Struct of arrays, (N,) each. kind: 0 granular, 1 wall, 2 leg."""
-
-    x: np.ndarray
-    z: np.ndarray
-    kind: np.ndarray
-    mass: np.ndarray
-    rho: np.ndarray
-    vx: np.ndarray = None
-    vz: np.ndarray = None
-    sxx: np.ndarray = None
-    szz: np.ndarray = None
-    sxz: np.ndarray = None
-    syy: np.ndarray = None
-
-    def __post_init__(self):
-        n = len(self.x)
-        for name in ("vx", "vz", "sxx", "szz", "sxz", "syy"):
-            if getattr(self, name) is None:
-                setattr(self, name, np.zeros(n))
-
-    def __len__(self):
-        return len(self.x)
-
-    STATE = ("x", "z", "vx", "vz", "rho", "sxx", "szz", "sxz", "syy")
-
-
-@dataclass
-class RigidBody:
-    """A rigid leg: body-frame particle coordinates (n,), body outward normals (n,), offset
-    of each particle from the leg's centre line along its outward normal (n,); trajectory;
-    ``t0``: trajectory time at solver time 0; ``width``: out-of-plane width (m) that turns
-    per-unit-depth forces into newtons."""
-
-    bx: np.ndarray
-    bz: np.ndarray
-    bnx: np.ndarray
-    bnz: np.ndarray
-    dcl: np.ndarray
-    trajectory: Trajectory
-    t0: float
-    width: float
-    thickness: float = 0.0
-    guard: np.ndarray | None = None  # (n,) 1 where the penetration guard applies (not the tip)
-    centre: np.ndarray | None = None  # (2, m) body-frame centre line, hip to tip (side test)
-
-    def side_box(self, reach: float) -> np.ndarray:
-        """(x0, x1, z0, z1): the centre line's body-frame bounding box grown by ``reach``."""
-        c = self.centre
-        return np.array([c[0].min() - reach, c[0].max() + reach, c[1].min() - reach,
-                         c[1].max() + reach])
-
-    def poses(self, t_traj) -> np.ndarray:
-        """(n, 9) rows (hip_x, hip_z, hip_vx, hip_vz, hip_ax, hip_az, angle, omega, alpha) at
-        the trajectory times ``t_traj`` (n,) (linear interpolation of the samples, clamped to
-        the trajectory's ends; accelerations by differences)."""
-        tab = self.__dict__.get("_tab")
-        tr = self.trajectory
-        tt = tr.time
-        if tab is None:
-            acc = [np.gradient(a, tt) if len(tt) > 2 else np.zeros_like(tt)
-                   for a in (tr.hip_vx, tr.hip_vz, tr.angular_velocity)]
-            tab = np.stack([tr.hip_x, tr.hip_z, tr.hip_vx, tr.hip_vz, acc[0], acc[1], tr.angle,
-                            tr.angular_velocity, acc[2]])
-            self.__dict__["_tab"] = tab
-        t = np.clip(np.asarray(t_traj, dtype=float), tt[0], tt[-1])
-        k = np.minimum(np.searchsorted(tt, t, side="right") - 1, len(tt) - 2)
-        f = (t - tt[k]) / (tt[k + 1] - tt[k])
-        return (tab[:, k] + f * (tab[:, k + 1] - tab[:, k])).T
-
-
-@dataclass
-class Scene:
-    """Particles, material, numerical config, optional rigid leg; ``meta`` describes it."""
-
-    particles: Particles
-    material: GranularMaterial
-    config: SPHConfig
-    leg: RigidBody | None = None
-    gravity: tuple[float, float] = (0.0, -G)
-    meta: dict = field(default_factory=dict)
-    depth_scale: float = 0.1  # a length for the settling time (bed depth), m
-
-
 class Solver:
     """Advances a :class:`Scene`. ``step()`` one step; ``run(t_end)`` many, recording the
     force on the leg each step. The kernels run on the backend that ``config.backend`` names
-    (:class:`CPUBackend`, or :class:`terradyn.sph.gpu.GPUBackend`, which keeps the particles
-    on the GPU; its arrays here are brought up to date when read, see :meth:`sync_to_host`)."""
+    (:class:`~.cpu.CPUBackend`, whose state is this solver's arrays, or
+    :class:`terradyn.sph.gpu.GPUBackend`, which keeps the particles on the GPU: there the
+    arrays here (:data:`DEVICE_OWNED`) are brought up to date by :meth:`sync_to_host`, which
+    :attr:`state`, the snapshots, checkpoints and error reports call; edits made to them after
+    it go to the device with the next step)."""
 
     def __init__(self, scene: Scene):
         self.scene = scene
@@ -235,9 +97,9 @@ class Solver:
         self.nox = np.zeros(n)
         self.noz = np.zeros(n)
         self.dcl = np.zeros(n)
-        self.sidx = np.flatnonzero(self.kind == K.SOIL).astype(np.int64)
-        self.widx = np.flatnonzero(self.kind == K.WALL).astype(np.int64)
-        self.lidx = np.flatnonzero(self.kind == K.LEG).astype(np.int64)
+        self.sidx = np.flatnonzero(self.kind == SOIL).astype(np.int64)
+        self.widx = np.flatnonzero(self.kind == WALL).astype(np.int64)
+        self.lidx = np.flatnonzero(self.kind == LEG).astype(np.int64)
         if scene.leg is not None:
             if len(self.lidx) != len(scene.leg.bx):
                 raise InputError("scene", "leg particle count does not match the rigid body")
@@ -289,13 +151,11 @@ class Solver:
             import numba
 
             numba.set_num_threads(int(cfg.threads))
-        self._held = None
         self.backend_name = resolve_backend(cfg.backend)
         if self.backend_name == "gpu":
             from .gpu import GPUBackend
 
             self._backend = GPUBackend(self)
-            self._detach()
         else:
             self._backend = CPUBackend(self)
 
@@ -309,7 +169,7 @@ class Solver:
         return float(np.max(np.hypot(tr.hip_vx, tr.hip_vz) + np.abs(tr.angular_velocity) * r))
 
     def _grid(self):
-        cell = (2.0 + K.SKIN) * self.h / K.REACH  # cells reach the Verlet-list radius
+        cell = (2.0 + SKIN) * self.h / REACH  # cells reach the Verlet-list radius
         xs = [self.x.min(), self.x.max()]
         zs = [self.z.min(), self.z.max()]
         leg = self.scene.leg
@@ -366,14 +226,16 @@ class Solver:
             poses = np.zeros((n, 9))
         else:
             poses = leg.poses(leg.t0 + np.maximum(ts - self.settle_time, 0.0))
-            poses[settling, 2:6] = 0.0  # the leg waits at its start pose
-            poses[settling, 7:] = 0.0
+            # the leg waits at its start pose: no velocities, accelerations, angular rates
+            poses[settling, POSE_HIP_VX:POSE_HIP_AZ + 1] = 0.0
+            poses[settling, POSE_OMEGA:POSE_ALPHA + 1] = 0.0
         forces = np.zeros((n, 3))
         done, nbad = self._backend.steps(poses, dampings, forces)
         self.t = ts[done] if done < n else t
         self.step_count += done
         if nbad:
-            i = int(np.argmax(self.bad))  # on the GPU backend: copies the state back
+            self.sync_to_host()
+            i = int(np.argmax(self.bad))
             finite = np.isfinite([self.x[i], self.z[i], self.sxx[i], self.szz[i], self.rho[i]]).all()
             reason = (f"speed {math.hypot(self.vx[i], self.vz[i]):.3g} m/s exceeds the sound speed "
                       f"{self.c0:.3g} m/s" if finite else "non-finite position, density or stress")
@@ -387,41 +249,31 @@ class Solver:
         self.lost += self._backend.drop_lost(self._box)
 
     # ------------------------------------------------------------------ host/device state
-    def _detach(self) -> None:
-        """GPU backend: the device now holds the newer state; take the host copies out of the
-        instance so that reading one goes through :meth:`__getattr__`."""
-        d = self.__dict__
-        self._held = {k: d.pop(k) for k in DEVICE_OWNED}
-
-    def __getattr__(self, name):
-        # Reached only when normal lookup fails: on the GPU backend, for the detached arrays.
-        d = self.__dict__
-        held = d.get("_held")
-        if held is not None and name in DEVICE_OWNED:
-            self.sync_to_host()
-            return d[name]
-        raise AttributeError(f"{type(self).__name__!r} object has no attribute {name!r}")
-
     def sync_to_host(self) -> None:
-        """Bring the host arrays up to date (GPU backend: copies the device state back; the
-        next step copies the host arrays, edits included, to the device). No-op on the CPU."""
-        d = self.__dict__
-        held = d.get("_held")
-        if held is None:
-            return
-        self._backend.sync_to_host(held)
-        d.update(held)
-        d["_held"] = None
+        """Bring the solver's arrays (:data:`DEVICE_OWNED`) up to date from the backend (GPU:
+        copies the device state back, and the next step copies the host arrays, edits
+        included, to the device; CPU: nothing to do)."""
+        self._backend.to_host()
+
+    @property
+    def state(self) -> "Solver":
+        """The solver with its arrays up to date (:meth:`sync_to_host`): ``solver.state.x``
+        reads the positions now on any backend."""
+        self.sync_to_host()
+        return self
 
     # ------------------------------------------------------------------------------ snapshots
     def snapshot(self) -> dict:
         """Granular particles now: x, z (m), vx, vz (m/s), pressure (Pa, -trace/3)."""
+        self.sync_to_host()
         s = self.sidx
         return {"time": self.t, "x": self.x[s].copy(), "z": self.z[s].copy(),
                 "vx": self.vx[s].copy(), "vz": self.vz[s].copy(),
                 "pressure": -(self.sxx[s] + self.szz[s] + self.syy[s]) / 3.0}
 
     def stress(self) -> dict:
+        """Granular particles now: x, z (m) and the stress components (Pa, tension positive)."""
+        self.sync_to_host()
         s = self.sidx
         return {"x": self.x[s].copy(), "z": self.z[s].copy(), "sxx": self.sxx[s].copy(),
                 "szz": self.szz[s].copy(), "sxz": self.sxz[s].copy(), "syy": self.syy[s].copy()}
@@ -432,6 +284,7 @@ class Solver:
         lost), the counters and, on the CPU backend, its neighbour search state (the cell
         order, Verlet lists and positions of the last list build, as ``cpu_*``), so that a
         run resumed from it on the CPU is bit-identical to one that was never stopped."""
+        self.sync_to_host()
         d = {name: getattr(self, name) for name in Particles.STATE}
         d.update(t=np.array(self.t), step_count=np.array(self.step_count), kind=self.kind,
                  lost=np.array(self.lost))
@@ -445,134 +298,20 @@ class Solver:
         checkpoint or the other backend did not write are left as they are (without the
         neighbour state the lists are rebuilt at the next step)."""
         keys = set(d.keys())
+        self.sync_to_host()  # the arrays not in d must be current before the next step
         for name in Particles.STATE:
             getattr(self, name)[:] = d[name]
         self.t = float(d["t"])
         self.step_count = int(d["step_count"])
         if "kind" in keys:
             self.kind[:] = d["kind"]
-            self.sidx = np.flatnonzero(self.kind == K.SOIL).astype(np.int64)
+            self.sidx = np.flatnonzero(self.kind == SOIL).astype(np.int64)
         if "lost" in keys:
             self.lost = int(d["lost"])
         pre = f"{self._backend.name}_"
         own = {k[len(pre):]: d[k] for k in keys if k.startswith(pre)}
         if own and hasattr(self._backend, "load_state"):
             self._backend.load_state(own)
-
-
-class CPUBackend:
-    """The solver's arrays on the host, advanced by the multi-threaded CPU kernels of
-    :mod:`terradyn.sph.kernels` (a block of steps per call: :func:`~.kernels.cpu_steps`)."""
-
-    name = "cpu"
-
-    def __init__(self, solver: Solver):
-        self.s = s = solver
-        n = solver.n
-        hdx = solver.scene.config.hdx
-        self.nb = K.neighbour_list(n, hdx)
-        # every boundary particle (walls, then leg) in one kernel call
-        self.bidx = np.concatenate([s.widx, s.lidx]).astype(np.int64)
-        nbl = K.neighbour_list(max(len(self.bidx), 1), hdx)
-        self.bj, self.bn = nbl[0], nbl[1]  # the boundary particles' Verlet lists
-        self.xb = np.full(n, np.inf)  # positions at the last list build: none yet
-        self.zb = np.full(n, np.inf)
-        # the pair passes' buffer for the other particle of a pair, and their chunks
-        self.buf = np.zeros((n, 5))
-        self.cont = np.zeros((n, 3))
-        self.bounds = np.zeros(K.MAX_CHUNKS + 1, np.int64)
-        leg = s.scene.leg
-        self.body = (np.ascontiguousarray(np.stack([leg.bx, leg.bz, leg.bnx, leg.bnz]),
-                                          dtype=np.float64)
-                     if leg is not None else np.zeros((4, 0)))
-        mat = s.scene.material
-        cfg = s.scene.config
-        gx, gz = s.scene.gravity
-        val = dict(h=s.h, xmin=s.xmin, zmin=s.zmin, inv_cell=s.inv_cell, gx=gx, gz=gz, dt=s.dt,
-                   shear_mod=mat.shear_modulus, bulk_mod=mat.bulk_modulus,
-                   alpha_phi=mat.alpha_phi, k_c=mat.k_c, rho_min=0.9 * mat.density,
-                   rho_max=1.1 * mat.density, c0=s.c0, av_alpha=cfg.av_alpha,
-                   av_beta=cfg.av_beta, half_t=s.half_t, gap=s.gap, max_push=0.1 * cfg.dx,
-                   vmax_allowed=s.vmax_allowed, side_reach2=s.side_reach ** 2)
-        self.fp = np.array([val[k] for k in K.FP], dtype=np.float64)
-        ival = dict(ncx=s.ncx, ncz=s.ncz, noslip=int(bool(cfg.noslip)),
-                    av_boundary=int(bool(cfg.av_boundary)), has_leg=int(leg is not None),
-                    nchunk=1, builds=0, sides=int(s.sides))
-        self.ip = np.array([ival[k] for k in K.IP], dtype=np.int64)
-        if s.sides:
-            self.cl = np.ascontiguousarray(leg.centre, dtype=np.float64)
-            self.clbox = leg.side_box(s.side_reach)
-        else:
-            self.cl = np.zeros((2, 2))
-            self.clbox = np.zeros(4)
-
-    @property
-    def builds(self) -> int:
-        """Verlet-list builds so far."""
-        return int(self.ip[K.IP.index("builds")])
-
-    def steps(self, poses, dampings, forces):
-        """Advance len(poses) steps (see :func:`~.kernels.cpu_steps`); returns (steps done,
-        unstable particles)."""
-        s = self.s
-        done, nbad = K.cpu_steps(
-            poses, dampings, forces, s.x, s.z, s.vx, s.vz, s.rho, s.sxx, s.szz, s.sxz, s.syy,
-            s.gvx, s.gvz, s.acc_x, s.acc_z, s.nox, s.noz, s.dcl, s.guard, s.mass, s.kind, s.fleg,
-            s.bad, s._srt, s._srtk, s.cell_start, s.cell_index, self.bidx, s.lidx, self.body,
-            self.xb, self.zb, *self.nb, self.bj, self.bn, self.buf, self.cont, self.bounds,
-            self.fp, self.ip, self.cl, self.clbox)
-        return int(done), int(nbad)
-
-    def state_dict(self) -> dict:
-        """The neighbour search state that persists between steps (see
-        :meth:`Solver.state_dict`): positions at the last list build, the cell order and
-        pair chunks made then, the Verlet lists of pass 1 and of the boundary particles (the
-        columns up to the longest list) and the counters. Pass 2's lists (nbj, nbw, nbn) and
-        the scratch buffers are rewritten every step before they are read."""
-        s = self.s
-        vj, vn = self.nb[0], self.nb[1]
-        m = int(max(vn.max(initial=0), 0))
-        mb = int(max(self.bn.max(initial=0), 0))
-        return {"xb": self.xb, "zb": self.zb, "cell_start": s.cell_start,
-                "cell_index": s.cell_index, "bounds": self.bounds, "ip": self.ip,
-                "vj": vj[:, :m], "vn": vn, "bj": self.bj[:, :mb], "bn": self.bn}
-
-    def load_state(self, d) -> None:
-        s = self.s
-        self.xb[:] = d["xb"]
-        self.zb[:] = d["zb"]
-        s.cell_start[:] = d["cell_start"]
-        s.cell_index[:] = d["cell_index"]
-        self.bounds[:] = d["bounds"]
-        for k in ("nchunk", "builds"):
-            i = K.IP.index(k)
-            self.ip[i] = d["ip"][i]
-        vj = np.asarray(d["vj"])
-        self.nb[0][:, :vj.shape[1]] = vj
-        self.nb[1][:] = d["vn"]
-        bj = np.asarray(d["bj"])
-        self.bj[:, :bj.shape[1]] = bj
-        self.bn[:] = d["bn"]
-
-    def drop_lost(self, box) -> int:
-        s = self.s
-        x0, x1, z0 = box
-        sidx = s.sidx
-        out = (s.x[sidx] < x0) | (s.x[sidx] > x1) | (s.z[sidx] < z0)
-        if not out.any():
-            return 0
-        ids = sidx[out]
-        s.kind[ids] = K.LOST
-        s.x[ids] = 1e3 + np.arange(len(ids))  # beyond every kernel support
-        s.z[ids] = 1e3
-        for a in (s.vx, s.vz, s.sxx, s.szz, s.sxz, s.syy):
-            a[ids] = 0.0
-        s.fleg[ids] = 0.0
-        s.sidx = np.flatnonzero(s.kind == K.SOIL).astype(np.int64)
-        return len(ids)
-
-    def sync_to_host(self, arrays) -> None:
-        pass
 
 
 def scene_key(scene: Scene, extra: dict | None = None) -> str:
@@ -694,6 +433,7 @@ def run(scene: Scene, duration: float, *, snapshot_times=(), checkpoint: str | P
     if ck is not None and _checkpoint_key(ck) == key:
         ck.unlink(missing_ok=True)  # two runs of one scene may race to finish
     rec = rec[:nrec]
+    solver.sync_to_host()  # the result's solver: its arrays read the final state on any backend
     res = RunResult(rec[:, 0], rec[:, 1], rec[:, 2], rec[:, 3], snaps, solver.step_count,
                     solver.dt, _time.perf_counter() - t0, solver.n, resumed_from)
     res.solver = solver

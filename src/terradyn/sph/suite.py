@@ -74,7 +74,7 @@ def rig_point(mat, beta: float, gamma: float, *, dx=4e-3, depth=0.03, travel=0.0
     path and moves ``travel`` at ``speed``; alpha = force / (area |z_centre|), averaged over
     the second half of the travel (after the failure has formed)."""
     from .api import simulate
-    from .solver import SPHConfig
+    from .state import SPHConfig
 
     L, W, T = RIG_PLATE
     cfg = config or SPHConfig(dx=dx)
@@ -141,7 +141,7 @@ def leg_vs_measured(name: str, medium, *, omega=1.1, dx=4e-3, config=None, progr
     from ..rft import simulate as rft_simulate
     from .api import simulate
     from .materials import material
-    from .solver import SPHConfig
+    from .state import SPHConfig
 
     mat = material(medium)
     exp = measured_legs()

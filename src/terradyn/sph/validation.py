@@ -19,7 +19,8 @@ from ..motion import PlanarMotion, Rotation
 from ..units import CM, DEG, G, N_PER_CM3
 from .materials import GranularMaterial, material as _material
 from .scenes import bed_scene, column_scene
-from .solver import SPHConfig, run
+from .solver import run
+from .state import SPHConfig
 
 LUBE2005 = ("G. Lube, H. E. Huppert, R. S. J. Sparks, A. Freundt, Collapses of two-dimensional "
             "granular columns, Phys. Rev. E 72:041301 (2005)")
