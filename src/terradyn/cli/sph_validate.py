@@ -22,6 +22,7 @@ def calibrate_cmd(
     name: str = typer.Option("custom", help="A user's medium: its name in the output."),
     friction_start_deg: float = typer.Option(30.0, help="A user's medium: first friction angle of the search, deg."),
     dx_mm: float = typer.Option(4.0, "--dx-mm", help="Particle spacing of the plate test, mm (the resolution the medium will run at)."),
+    youngs_mpa: float = typer.Option(0.25, "--youngs-mpa", help="Young's modulus of the SPH material, MPa (numerical stiffness; at friction angles above ~40 deg the plate test needs >= 1 MPa, docs/sph.md)."),
     tol: float = typer.Option(0.03, help="Relative tolerance on the plate slope."),
     realizations: int = typer.Option(2, help="Plate runs averaged per friction angle (single runs scatter by about 10 %)."),
     max_evals: int = typer.Option(6, help="Most friction angles tried per medium."),
@@ -49,6 +50,7 @@ def calibrate_cmd(
 
     dx = in_range("dx-mm", dx_mm, 1.0, 20.0, "mm") * 1e-3
     integer("realizations", realizations, 1)
+    youngs = in_range("youngs-mpa", youngs_mpa, 0.05, 100.0, "MPa") * 1e6
     integer("max-evals", max_evals, 2)
     if out is not None:
         from ..io import check_output
@@ -64,14 +66,14 @@ def calibrate_cmd(
                              "a user's medium needs both --density-kg-m3 and --alpha-z-n-cm3")
         positive("alpha-z-n-cm3", alpha_z_n_cm3, "N/cm^3")
         in_range("friction-start-deg", friction_start_deg, 10, 60, "deg")
-        jobs.append((from_properties(name, density_kg_m3, friction_start_deg),
+        jobs.append((from_properties(name, density_kg_m3, friction_start_deg, youngs=youngs),
                      alpha_z_n_cm3 * N_PER_CM3))
     else:
         for m in medium or list(MEDIA):
             if m not in MEDIA or MEDIA[m].alpha_z_plate is None:
                 raise InputError("medium", f"unknown value {m!r}; allowed: "
                                            + ", ".join(k for k in MEDIA if MEDIA[k].alpha_z_plate))
-            jobs.append((from_medium(m, friction="repose"), MEDIA[m].alpha_z_plate))
+            jobs.append((from_medium(m, friction="repose", youngs=youngs), MEDIA[m].alpha_z_plate))
     result = {"_meta": {"what": "SPH friction angles calibrated on the plate test (terradyn sph calibrate)",
                         "plate_test": PLATE_TEST, "dx_m": dx, "realizations": realizations,
                         "terradyn_version": __version__,
@@ -82,7 +84,7 @@ def calibrate_cmd(
         cal = calibrate_friction(mat, target, dx=dx, tol=tol, realizations=realizations,
                                  max_evals=max_evals,
                                  report=lambda p, a: err(f"  phi = {p:.2f} deg -> alpha_z = {a:.4f} N/cm^3"))
-        result[mat.name] = cal.describe() | {"density_kg_m3": mat.density}
+        result[mat.name] = cal.describe() | {"density_kg_m3": mat.density, "youngs_Pa": mat.youngs}
         if not cal.converged:
             err(f"  not converged ({cal.note}): best phi = {cal.friction_deg:.2f} deg")
     if out is None:

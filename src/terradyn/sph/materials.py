@@ -123,6 +123,7 @@ def from_medium(medium: str, youngs: float = NUMERICAL_E, poisson: float = 0.3,
         src = "user"
     elif cal is not None:
         phi = cal["friction_deg"] * DEG
+        youngs = cal.get("youngs_Pa", youngs)  # the stiffness it was calibrated with
         src = (f"calibrated: the SPH plate test (dx = {cal['dx_m'] * 1e3:g} mm) reproduces the "
                f"measured alpha_z(0, pi/2) = {cal['alpha_z_measured_N_per_cm3']:g} N/cm^3 "
                f"({LI2013}, Table S3) within {abs(cal['relative_difference']) * 100:.1f} %; "

@@ -220,6 +220,7 @@ def validate(*, quick=False, scenes=SCENES, media=None, dx=None, omega=1.1, prog
                                 meas / N_PER_CM3, f"{LI2013}, Table S3 (the calibration target)",
                                 "within 15 %", abs(r["alpha_z"] / meas - 1) <= 0.15, "N/cm^3"))
             details.setdefault("plate", {})[m] = {"phi_deg": mat.friction / DEG,
+                                                  "slope_N_per_cm3": r["slope"] / N_PER_CM3,
                                                   "intercept_Pa": r["intercept_Pa"]}
     if "rig" in scenes:
         for m in media:
