@@ -253,6 +253,7 @@ def plate_cmd(medium: str = _MEDIUM, density_kg_m3: Optional[float] = _DENSITY,
     r = validation.plate_push(_material(medium, density_kg_m3, friction_deg),
                               speed=speed_cm_s * 1e-2, depth=depth_cm * 1e-2, config=cfg)
     typer.echo(json.dumps({"alpha_z_N_per_cm3": r["alpha_z"] / 1e6,
+                           "alpha_z_through_origin_N_per_cm3": r["alpha_z_origin"] / 1e6,
                            "alpha_z_measured_N_per_cm3": (r["alpha_z_measured"] or float("nan")) / 1e6,
                            "alpha_z_rft_fit_N_per_cm3": r["alpha_z_fit"] / 1e6}))
     if plot:

@@ -15,7 +15,10 @@ time step scales with 1/sqrt(E): 0.25 MPa keeps the sound speed (14 m/s) > 150 x
 leg speed of the thesis's tests (so the flow stays quasi-static) and the full rotating-leg
 test inside its time budget. Stiffness check (docs/sph.md): flat leg, intrusion -65..-50 deg
 at 2 rad/s, quick resolution: mean lift 3.76 N at 0.25 MPa vs 3.94 N at 1 MPa (-4.5 %),
-thrust 1.31 vs 1.36 N (-4 %).
+thrust 1.31 vs 1.36 N (-4 %). With the resolved leg boundary of issue 17 that no longer
+holds: the flat leg's peak lift in poppy LP is 5.75 N at 0.25 MPa and 7.12 N at 1 MPa, and the
+plate test at high friction angles depends on E strongly (docs/sph.md, "Validation against
+measurements"): 0.25 MPa is kept for speed, not because it is converged.
 """
 from __future__ import annotations
 

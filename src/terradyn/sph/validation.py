@@ -132,9 +132,12 @@ def plate_push(medium="3 mm glass CP", *, length=3.81 * CM, width=2.54 * CM, thi
     stress = ds.Fz.values / (length * width)
     m = d > fit_from
     slope = float(np.polyfit(d[m], stress[m], 1)[0]) if m.sum() >= 2 else float("nan")
+    # sigma = alpha |z| through the origin, as RFT applies it (terradyn.sph.calibration)
+    alpha0 = float(np.sum(stress[m] * d[m]) / np.sum(d[m] ** 2)) if m.sum() >= 1 else float("nan")
     ax, az = stress_model(mat.name, "fit").alpha(0.0, np.pi / 2) if mat.name in MEDIA else (0.0, np.nan)
     measured = MEDIA[mat.name].alpha_z_plate if mat.name in MEDIA else None
-    return {"depth": d, "stress": stress, "alpha_z": slope, "alpha_z_measured": measured,
+    return {"depth": d, "stress": stress, "alpha_z": slope, "alpha_z_origin": alpha0,
+            "alpha_z_measured": measured,
             "alpha_z_fit": float(az), "series": ds, "Fx": ds.Fx.values}
 
 
