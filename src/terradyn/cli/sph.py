@@ -22,13 +22,13 @@ _QUICK = typer.Option(False, "--quick", help="Coarse resolution (4 mm particles)
 #: Largest particle spacing the commands accept, mm (coarser beds hold too few particles).
 DX_MM_MAX = 10.0
 _DX = typer.Option(None, "--dx-mm", help=f"Particle spacing, mm, in (0, {DX_MM_MAX:g}] "
-                                         "[default: 2.5; --quick 4].")
+                                         "(default: 2.5; --quick 4).")
 _BACKEND = typer.Option(Backend.cpu, "--backend",
                         help="Kernels: cpu (multi-threaded), gpu (NVIDIA, needs the 'gpu' extra) "
                              "or auto (the GPU when one is usable).")
 _MEDIUM = typer.Option("3 mm glass CP", help="Medium (Li 2013 Table S1 name), e.g. '3 mm glass CP', 'poppy LP'; with --density-kg-m3, the name of your own medium.")
 _DENSITY = typer.Option(None, "--density-kg-m3", help="Your own medium: bulk density, kg/m^3 (needs --friction-deg; calibrate it with 'terradyn sph calibrate').")
-_FRICTION = typer.Option(None, "--friction-deg", help="Friction angle, deg [default: the medium's angle of repose, Li 2013 Table S1].")
+_FRICTION = typer.Option(None, "--friction-deg", help="Friction angle, deg (default: the medium's angle of repose, Li 2013 Table S1).")
 _BOUNDARY = typer.Option("resolved", "--boundary", help="Leg boundary: resolved (sides kept apart, contact at dx/4) or guard (the model before issue 17).")
 
 
@@ -112,8 +112,8 @@ def run_cmd(
     leg: Leg = typer.Option(Leg.flat, "--leg", help="Leg shape (flat, c, reverse-c, foot)."),
     leg_file: Optional[Path] = typer.Option(None, "--leg-file", help="CSV polyline x_cm,z_cm from hip to tip."),
     curvature: Optional[float] = typer.Option(None, help="Arc curvature in [-1, 1] (1 = C, -1 = reverse C)."),
-    length_cm: Optional[float] = typer.Option(None, help="Chord length, cm [default 7.62]."),
-    width_cm: Optional[float] = typer.Option(None, help="Leg width, cm [default 2.54]."),
+    length_cm: Optional[float] = typer.Option(None, help="Chord length, cm (default: 7.62)."),
+    width_cm: Optional[float] = typer.Option(None, help="Leg width, cm (default: 2.54)."),
     thickness_cm: float = typer.Option(0.64, help="Leg thickness, cm."),
     hip_height_cm: float = typer.Option(2.0, help="Hip height above the surface, cm."),
     omega: float = typer.Option(0.2, help="Angular speed, rad/s."),
@@ -128,12 +128,12 @@ def run_cmd(
     quick: bool = _QUICK,
     dx_mm: Optional[float] = _DX,
     cfl: float = typer.Option(0.2, help="Courant number of the time step."),
-    lowpass_hz: Optional[float] = typer.Option(None, help="Zero-phase Butterworth low-pass of the force record, Hz [default: none]."),
+    lowpass_hz: Optional[float] = typer.Option(None, help="Zero-phase Butterworth low-pass of the force record, Hz (default: none)."),
     checkpoint: Optional[Path] = typer.Option(None, help="Checkpoint file: written every minute; a rerun resumes from it."),
     snapshots: int = typer.Option(0, help="Number of particle snapshots to keep (evenly over the motion; those in the simulated contact part)."),
     snapshots_out: Optional[Path] = typer.Option(None, help="Write the snapshots here (.nc)."),
     compare_rft: bool = typer.Option(False, help="Also run RFT and print peak differences and MSE."),
-    out: Optional[str] = typer.Option(None, "--out", "-o", help="Output .nc, .zarr or .csv [default: CSV on stdout]."),
+    out: Optional[str] = typer.Option(None, "--out", "-o", help="Output .nc, .zarr or .csv (default: CSV on stdout)."),
     plot: Optional[Path] = typer.Option(None, help="Figure of the forces (.png/.pdf/.svg)."),
     backend: Backend = _BACKEND,
 ):
