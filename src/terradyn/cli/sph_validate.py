@@ -39,14 +39,12 @@ def calibrate_cmd(
     import platform
 
     from .. import __version__
-    from ..errors import InputError, in_range, positive
+    from ..errors import InputError, in_range, integer, positive
     from ..media import MEDIA
     from ..sph.calibration import PLATE_TEST, calibrate_friction
     from ..sph.materials import from_medium, from_properties
     from ..units import N_PER_CM3
     from . import err
-
-    from ..errors import integer
 
     dx = in_range("dx-mm", dx_mm, 1.0, 20.0, "mm") * 1e-3
     integer("realizations", realizations, 1)
@@ -109,13 +107,12 @@ def validate_cmd(
 
     Exit code 0 whether checks pass or fail (the JSON says which); 2 for bad input.
     """
-    from ..errors import InputError, in_range
+    from ..errors import InputError, choice, in_range
     from ..sph import suite
     from . import err
 
-    for s in scene:
-        if s not in suite.SCENES:
-            raise InputError("scene", f"unknown value {s!r}; allowed: {', '.join(suite.SCENES)}")
+    for s in scene:  # before the output folder is made
+        choice("scene", s, list(suite.SCENES))
     dx = None if dx_mm is None else in_range("dx-mm", dx_mm, 1.0, 10.0, "mm") * 1e-3
     in_range("omega", omega, 0.01, 10.0, "rad/s")
     if out.exists() and not out.is_dir():

@@ -16,7 +16,7 @@ from importlib import resources
 
 import numpy as np
 
-from ..errors import InputError, choice
+from ..errors import choice
 from ..geometry import ArcLeg, make_leg
 from ..media import LI2013, MEDIA, stress_model
 from ..motion import PlanarMotion, Rotation
@@ -237,7 +237,7 @@ def validate(*, quick=False, scenes=SCENES, media=None, dx=None, omega=1.1, prog
                 plots.rig_maps(r, fig(f"rig_{m.replace(' ', '_')}.png"),
                                title=f"virtual plate rig, {m} (phi = {material(m).friction / DEG:.1f} deg)")
     if "legs" in scenes:
-        for m in [x for x in media if x in LEG_MEDIA] or ([] if media else list(LEG_MEDIA)):
+        for m in [x for x in media if x in LEG_MEDIA]:
             for leg in (("flat",) if quick else LEGS):
                 say(f"{leg} leg, {m}")
                 r = leg_vs_measured(leg, m, omega=omega, dx=dx)
@@ -265,4 +265,4 @@ def summary(result: dict) -> dict:
 
 
 __all__ = ["validate", "plate_rig", "rig_point", "leg_vs_measured", "measured_legs", "SCENES",
-           "summary", "InputError"]
+           "summary"]
