@@ -31,8 +31,10 @@ def test_material_rejects_bad_input():
         GranularMaterial("x", 1500, 1e6, 0.6, 0.3)
     with pytest.raises(InputError, match="medium"):
         from_medium("sand")
-    with pytest.raises(InputError, match="dilatancy"):
+    with pytest.raises(InputError, match="critical_density"):  # dilation must stop somewhere
         GranularMaterial("x", 1500, 1e6, 0.3, 0.3, dilatancy=0.1)
+    with pytest.raises(InputError, match="dilatancy"):  # psi <= phi
+        GranularMaterial("x", 1500, 1e6, 0.3, 0.3, dilatancy=0.4, critical_density=1400)
 
 
 # --------------------------------------------------------------------------------- kernels
@@ -185,13 +187,60 @@ def test_pair_chunks_keep_every_write_in_the_next_chunk_and_sums_thread_independ
     assert "SAME True" in p.stdout
 
 
-def _stress_step(s, L, dt=1e-3, mat=MATERIALS["3 mm glass CP"]):
+def _stress_step(s, L, dt=1e-3, mat=MATERIALS["3 mm glass CP"], rho=1600.0):
     """Advance one stress state (sxx, szz, sxz, syy) by a velocity gradient L (2x2)."""
     arr = [np.array([v], float) for v in s]
-    K.update_stress(np.array([1600.0]), *arr, np.array([0]), np.zeros(1), np.array([L[0][0]]),
+    K.update_stress(np.array([rho]), *arr, np.array([0]), np.zeros(1), np.array([L[0][0]]),
                     np.array([L[0][1]]), np.array([L[1][0]]), np.array([L[1][1]]), dt,
-                    mat.shear_modulus, mat.bulk_modulus, mat.alpha_phi, mat.k_c, 0.0, 1e9)
+                    mat.shear_modulus, mat.bulk_modulus, mat.alpha_phi, mat.k_c, 0.0, 1e9,
+                    mat.alpha_psi, mat.dilation_limit)
     return [a[0] for a in arr]
+
+
+def test_dilatant_return_is_non_associated_and_stops_at_the_critical_density():
+    from terradyn.sph.materials import from_medium
+
+    dense = from_medium("0.3 mm glass CP", dilatancy="bolton")  # phi 25, psi 12.5 deg (Bolton)
+    assert dense.dilatancy / DEG == pytest.approx((35 - 25) / 0.8, abs=1e-3)
+    plain = dense.with_(dilatancy=0.0, critical_density=None)
+    s0 = (-1000.0, -1000.0, 0.0, -1000.0)
+    shear = [[0, 5.0], [5.0, 0]]
+    sd = _stress_step(s0, shear, mat=dense, rho=1550.0)
+    sp = _stress_step(s0, shear, mat=plain, rho=1550.0)
+    i1d, jd = _invariants(sd)
+    i1p, jp = _invariants(sp)
+    # both on the yield cone; the dilatant return adds compression (confined dilation)
+    assert jd + dense.alpha_phi * i1d == pytest.approx(0.0, abs=1e-9 * abs(i1d))
+    assert i1p == pytest.approx(-3000.0)
+    # the closed form: the plastic multiplier from the trial state's excess f_tr
+    trial = (-1000.0, -1000.0, 2 * dense.shear_modulus * 5.0 * 1e-3, -1000.0)  # elastic: Hooke
+    i1t, jt = _invariants(trial)
+    f_tr = jt + dense.alpha_phi * i1t
+    dlam = f_tr / (dense.shear_modulus + 9 * dense.bulk_modulus * dense.alpha_phi * dense.alpha_psi)
+    assert i1d == pytest.approx(i1t - 9 * dense.bulk_modulus * dense.alpha_psi * dlam, rel=1e-9)
+    assert jd == pytest.approx(jt - dense.shear_modulus * dlam, rel=1e-9)
+    assert i1d < i1p and jd > jp
+    # the deviator keeps its direction (pure shear stays pure shear): the dilatant return adds
+    # an isotropic compression only
+    assert sd[0] == pytest.approx(sd[1], rel=1e-12) and sd[0] == pytest.approx(sd[3], rel=1e-12)
+    # looser than the critical state: non-dilatant, bit for bit
+    assert _stress_step(s0, shear, mat=dense, rho=1440.0) == _stress_step(s0, shear, mat=plain,
+                                                                          rho=1440.0)
+
+
+def test_dilatancy_inputs_are_checked():
+    from terradyn.errors import InputError
+    from terradyn.sph.materials import from_medium
+
+    with pytest.raises(InputError, match="critical_density"):
+        MATERIALS["poppy LP"].with_(dilatancy=5 * DEG)
+    with pytest.raises(InputError, match="dilatancy"):
+        MATERIALS["poppy LP"].with_(dilatancy=50 * DEG, critical_density=600.0)
+    with pytest.raises(InputError, match="sibling"):
+        from_medium("3 mm glass CP", dilatancy="bolton")
+    with pytest.raises(InputError, match="dilatancy"):
+        from_medium("poppy CP", dilatancy="bolton", friction_deg=40)
+    assert from_medium("poppy LP", dilatancy="bolton").dilatancy == 0.0
 
 
 def _invariants(s):

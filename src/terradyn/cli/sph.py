@@ -29,10 +29,12 @@ _BACKEND = typer.Option(Backend.cpu, "--backend",
 _MEDIUM = typer.Option("3 mm glass CP", help="Medium (Li 2013 Table S1 name), e.g. '3 mm glass CP', 'poppy LP'; with --density-kg-m3, the name of your own medium.")
 _DENSITY = typer.Option(None, "--density-kg-m3", help="Your own medium: bulk density, kg/m^3 (needs --friction-deg; calibrate it with 'terradyn sph calibrate').")
 _FRICTION = typer.Option(None, "--friction-deg", help="Friction angle, deg (default: the medium's angle of repose, Li 2013 Table S1).")
+_DILATANCY = typer.Option("none", "--dilatancy", help="Flow rule: none (psi = 0) or bolton (a CP medium dilates until its LP packing: psi = (phi_CP - phi_LP) / 0.8, Bolton 1986; poppy CP, 0.3 mm glass CP).")
 _BOUNDARY = typer.Option("resolved", "--boundary", help="Leg boundary: resolved (sides kept apart, contact at dx/4) or guard (the model before issue 17).")
 
 
-def _material(medium: str, density_kg_m3: float | None, friction_deg: float | None):
+def _material(medium: str, density_kg_m3: float | None, friction_deg: float | None,
+              dilatancy: str = "none"):
     """The SPH material of the options: a Li 2013 medium (optionally another friction angle)
     or the user's own from its density and friction angle."""
     from ..errors import InputError
@@ -42,8 +44,11 @@ def _material(medium: str, density_kg_m3: float | None, friction_deg: float | No
         if friction_deg is None:
             raise InputError("friction-deg", "your own medium (--density-kg-m3) needs "
                                              "--friction-deg (find it: terradyn sph calibrate)")
+        if dilatancy != "none":
+            raise InputError("dilatancy", "'bolton' needs a Li 2013 medium with both packings "
+                                          "(poppy CP, 0.3 mm glass CP), not --density-kg-m3")
         return from_properties(medium, density_kg_m3, friction_deg)
-    return from_medium(medium, friction_deg=friction_deg)
+    return from_medium(medium, friction_deg=friction_deg, dilatancy=dilatancy)
 
 
 @contextmanager
@@ -124,6 +129,7 @@ def run_cmd(
     medium: str = _MEDIUM,
     density_kg_m3: Optional[float] = _DENSITY,
     friction_deg: Optional[float] = _FRICTION,
+    dilatancy: str = _DILATANCY,
     boundary: str = _BOUNDARY,
     quick: bool = _QUICK,
     dx_mm: Optional[float] = _DX,
@@ -160,7 +166,7 @@ def run_cmd(
     motion = motion_from_field_units(False, motion_file, omega, hip_height_cm, theta_start_deg,
                                      theta_end_deg, n_theta)
     cfg = _config(quick, dx_mm, cfl, lowpass_hz, Backend(backend).value, boundary)
-    mat = _material(medium, density_kg_m3, friction_deg)
+    mat = _material(medium, density_kg_m3, friction_deg, dilatancy)
     if compare_rft and density_kg_m3 is not None:
         from ..errors import InputError
 
@@ -236,7 +242,8 @@ def column_cmd(aspect: list[float] = typer.Option([0.5, 1.0, 2.0], help="Aspect 
 
 @sph_app.command("plate")
 def plate_cmd(medium: str = _MEDIUM, density_kg_m3: Optional[float] = _DENSITY,
-              friction_deg: Optional[float] = _FRICTION, boundary: str = _BOUNDARY,
+              friction_deg: Optional[float] = _FRICTION, dilatancy: str = _DILATANCY,
+              boundary: str = _BOUNDARY,
               quick: bool = _QUICK, dx_mm: Optional[float] = _DX,
               speed_cm_s: float = typer.Option(1.0, help="Plate speed, cm/s."),
               depth_cm: float = typer.Option(5.0, help="Final depth, cm."),
@@ -250,7 +257,7 @@ def plate_cmd(medium: str = _MEDIUM, density_kg_m3: Optional[float] = _DENSITY,
     positive("depth-cm", depth_cm, "cm")
     io.check_plot(plot)
     cfg = default_config(quick, dx=_dx(dx_mm), boundary=boundary)
-    r = validation.plate_push(_material(medium, density_kg_m3, friction_deg),
+    r = validation.plate_push(_material(medium, density_kg_m3, friction_deg, dilatancy),
                               speed=speed_cm_s * 1e-2, depth=depth_cm * 1e-2, config=cfg)
     typer.echo(json.dumps({"alpha_z_N_per_cm3": r["alpha_z"] / 1e6,
                            "alpha_z_through_origin_N_per_cm3": r["alpha_z_origin"] / 1e6,

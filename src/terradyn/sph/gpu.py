@@ -496,6 +496,7 @@ class GPUBackend:
                         shear_mod=float(mat.shear_modulus), bulk_mod=float(mat.bulk_modulus),
                         alpha_phi=float(mat.alpha_phi), k_c=float(mat.k_c),
                         rho_min=float(0.9 * mat.density), rho_max=float(1.1 * mat.density),
+                        alpha_psi=float(mat.alpha_psi), rho_crit=float(mat.dilation_limit),
                         rlist=float((2.0 + SKIN) * h), build=build)
         _k_strain[nb, TPB](self.srt, self.srtk, b.cell_index, b.cell_start, self.S, *self.nb,
                            par)

@@ -38,8 +38,10 @@ JAKY1944 = "J. Jaky, The coefficient of earth pressure at rest, J. Soc. Hung. Ar
 @dataclass(frozen=True)
 class GranularMaterial:
     """A dry granular material (SI). density: bulk density kg/m^3; youngs: Pa; poisson;
-    friction (phi) and dilatancy (psi) angles in rad; cohesion Pa; k0: lateral stress ratio of
-    the geostatic initial state (None: Jaky's 1 - sin phi)."""
+    friction (phi) and dilatancy (psi, 0 <= psi <= phi) angles in rad; cohesion Pa; k0:
+    lateral stress ratio of the geostatic initial state (None: Jaky's 1 - sin phi);
+    critical_density: the bulk density (kg/m^3, below ``density``) at which a dilatant
+    material stops dilating (its critical-state packing; required when psi > 0)."""
 
     name: str
     density: float
@@ -49,6 +51,7 @@ class GranularMaterial:
     cohesion: float = 0.0
     dilatancy: float = 0.0
     k0: float | None = None
+    critical_density: float | None = None
     sources: dict = field(default_factory=dict, compare=False)
 
     def __post_init__(self):
@@ -57,8 +60,13 @@ class GranularMaterial:
         in_range("poisson", self.poisson, 0.0, 0.499)
         in_range("friction", self.friction, 0.0, 80 * DEG, "rad")
         in_range("cohesion", self.cohesion, 0.0, 1e9, "Pa")
-        if self.dilatancy != 0.0:
-            raise InputError("dilatancy", "only non-dilatant flow (psi = 0, Bui et al. 2008) is implemented")
+        in_range("dilatancy", self.dilatancy, 0.0, self.friction, "rad")
+        if self.dilatancy > 0.0:
+            if self.critical_density is None:
+                raise InputError("critical_density", "a dilatant material (psi > 0) needs the "
+                                 "density of its critical state, where dilation stops (kg/m^3)")
+            in_range("critical_density", self.critical_density, 0.5 * self.density,
+                     self.density, "kg/m^3")
         if self.k0 is not None:
             in_range("k0", self.k0, 0.0, 1.0)
 
@@ -81,6 +89,18 @@ class GranularMaterial:
         return t / math.sqrt(9 + 12 * t * t)
 
     @property
+    def alpha_psi(self) -> float:
+        """The dilatancy constant of the plastic potential g = sqrt(J2) + alpha_psi I1 (the
+        plane-strain match of :attr:`alpha_phi` with psi for phi)."""
+        t = math.tan(self.dilatancy)
+        return t / math.sqrt(9 + 12 * t * t)
+
+    @property
+    def dilation_limit(self) -> float:
+        """Density below which the flow is non-dilatant (kg/m^3; 0 when psi = 0)."""
+        return float(self.critical_density) if self.dilatancy > 0.0 else 0.0
+
+    @property
     def k_c(self) -> float:
         t = math.tan(self.friction)
         return 3 * self.cohesion / math.sqrt(9 + 12 * t * t)
@@ -96,14 +116,20 @@ class GranularMaterial:
         return {"name": self.name, "density_kg_m3": self.density, "youngs_Pa": self.youngs,
                 "poisson": self.poisson, "friction_deg": self.friction / DEG,
                 "cohesion_Pa": self.cohesion, "dilatancy_deg": self.dilatancy / DEG,
+                "critical_density_kg_m3": self.critical_density,
                 "k0": self.lateral_ratio, "sources": self.sources}
 
 
 NUMERICAL_E = 2.5e5
 
 
+BOLTON1986 = ("M. D. Bolton, The strength and dilatancy of sands, Geotechnique 36:65-78 (1986): "
+              "plane strain phi_max - phi_crit = 0.8 psi_max")
+
+
 def from_medium(medium: str, youngs: float = NUMERICAL_E, poisson: float = 0.3,
-                friction_deg: float | None = None, friction: str = "repose") -> GranularMaterial:
+                friction_deg: float | None = None, friction: str = "repose",
+                dilatancy: str = "none") -> GranularMaterial:
     """The SPH material for a medium of :data:`terradyn.media.MEDIA` (Li 2013 Table S1).
 
     ``friction``: "repose" (default: the angle of repose, Table S1) or "calibrated" (the
@@ -111,7 +137,13 @@ def from_medium(medium: str, youngs: float = NUMERICAL_E, poisson: float = 0.3,
     medium's measured alpha_z(0, pi/2), Li 2013 Table S3, from
     ``terradyn/data/sph_calibration.json``, written by ``terradyn sph calibrate``; see
     :mod:`terradyn.sph.calibration` and docs/sph.md for why it is not the default yet).
-    ``friction_deg`` overrides both."""
+    ``friction_deg`` overrides both.
+
+    ``dilatancy``: "none" (default; psi = 0) or "bolton": a closely packed medium whose loose
+    packing Li 2013 also measured (poppy CP, 0.3 mm glass CP) takes the loose packing as its
+    critical state: phi = the loose packing's angle, psi = (phi_CP - phi_LP) / 0.8 (Bolton
+    1986, plane strain), and dilation stops at the loose packing's bulk density. A loose
+    packing is at its critical state (psi = 0)."""
     from .calibration import shipped
 
     choice("medium", medium, list(MEDIA))
@@ -134,9 +166,26 @@ def from_medium(medium: str, youngs: float = NUMERICAL_E, poisson: float = 0.3,
     else:
         phi = m.repose_angle
         src = f"angle of repose, {LI2013}, Table S1"
+    choice("dilatancy", dilatancy, ["bolton", "none"])
+    psi, rho_crit, psi_src = 0.0, None, "0: non-dilatant flow (Bui et al. 2008)"
+    if dilatancy == "bolton" and medium.endswith(" CP"):
+        loose = MEDIA.get(medium[:-3] + " LP")
+        if loose is None:
+            raise InputError("dilatancy", f"{medium!r} has no loosely packed sibling in "
+                             f"{LI2013} Table S1 to define its critical state: use 'none'")
+        if friction_deg is not None or friction != "repose":
+            raise InputError("dilatancy", "'bolton' sets the friction angle itself (the loose "
+                             "packing's); drop friction_deg / friction='calibrated'")
+        psi = (m.repose_angle - loose.repose_angle) / 0.8
+        phi = loose.repose_angle
+        rho_crit = loose.bulk_density
+        src = f"the loose packing's angle of repose (its critical state), {LI2013}, Table S1"
+        psi_src = f"{BOLTON1986}, with phi_max, phi_crit = Table S1 angles of CP, LP"
     return GranularMaterial(
         name=medium, density=m.bulk_density, youngs=youngs, poisson=poisson, friction=phi,
+        dilatancy=psi, critical_density=rho_crit,
         sources={
+            "dilatancy": psi_src,
             "density": f"grain density x volume fraction, {LI2013}, Table S1",
             "friction": src,
             "poisson": BUI2008,

@@ -16,7 +16,9 @@ Physics (2D plane strain, per unit depth; tension-positive stress, z up):
 * Constitutive law: elastic-perfectly plastic Drucker-Prager, Jaumann stress rate, elastic
   predictor then Bui et al. (2008) sec. 3.3 return: tension cut-off (shift of the mean stress
   back to the apex) and stress scaling of the deviator onto the yield surface. The flow is
-  non-dilatant (psi = 0), the choice Bui et al. found to match their experiment.
+  non-dilatant (psi = 0, the choice Bui et al. found to match their experiment) unless the
+  material has a dilatancy angle: then non-associated, while the packing is denser than its
+  critical state (:func:`dp_update`).
 * Boundaries: dummy particles (walls, rigid leg) whose stress and velocity are extrapolated
   from the granular particles around them (Adami, Hu & Adams 2012, J. Comput. Phys. 231:7057,
   generalised from pressure to the stress tensor), with the gravity / wall-acceleration term.
@@ -62,7 +64,7 @@ Gravity = namedtuple("Gravity", "gx gz")
 #: material's elastic and Drucker-Prager constants, density bounds, Verlet-list radius, and
 #: whether the lists are rebuilt this step.
 StrainPar = namedtuple("StrainPar", "h xmin zmin inv_cell ncx ncz dt shear_mod bulk_mod "
-                                    "alpha_phi k_c rho_min rho_max rlist build")
+                                    "alpha_phi k_c rho_min rho_max alpha_psi rho_crit rlist build")
 #: Pass 2 (:func:`_accel_kick_one`, :func:`_kick_one`), made by :func:`_accel_par`: grid,
 #: sound speed, artificial viscosity, gravity, the hip's position and velocity and the leg's
 #: clockwise angular speed, the contact guard (leg half thickness, gap, largest push per
@@ -98,13 +100,21 @@ def wendland_w(r, h):
 
 @_source
 def dp_update(rho, drho, lxx, lxz, lzx, lzz, sxx, szz, sxz, syy, dt, shear_mod, bulk_mod,
-              alpha_phi, k_c, rho_min, rho_max):
+              alpha_phi, k_c, rho_min, rho_max, alpha_psi, rho_crit):
     """One particle's density and Drucker-Prager stress over one step: Jaumann rate + Hooke's
     law (plane strain), then the Bui et al. (2008) return: tension cut-off and stress scaling
-    onto the yield surface (non-dilatant flow). The density is kept in [rho_min, rho_max]: a
-    dry packing neither compacts nor dilutes much, and grains splashed off the free surface
-    must not get tiny densities (their sigma/rho^2 would explode). Returns (rho, sxx, szz,
-    sxz, syy)."""
+    onto the yield surface. The density is kept in [rho_min, rho_max]: a dry packing neither
+    compacts nor dilutes much, and grains splashed off the free surface must not get tiny
+    densities (their sigma/rho^2 would explode). Returns (rho, sxx, szz, sxz, syy).
+
+    Flow rule: non-dilatant (psi = 0: the deviator is scaled at constant mean stress) unless
+    ``alpha_psi`` > 0 and the particle is denser than ``rho_crit``; then non-associated
+    (plastic potential g = sqrt(J2) + alpha_psi I1): the closed-form return of a linear
+    Drucker-Prager cone, d lambda = f / (G + 9 K alpha_phi alpha_psi), s -> s (1 - G d lambda
+    / sqrt(J2)), I1 -> I1 - 9 K alpha_psi d lambda (de Souza Neto, Peric & Owen 2008, sec.
+    8.3.3), to the apex where the cone return overshoots it. Plastic dilation raises the
+    mean compression of a confined particle; below rho_crit (the critical-state, loosest
+    packing) it stops."""
     rho = min(max(rho + dt * drho, rho_min), rho_max)
     exx = lxx
     ezz = lzz
@@ -135,6 +145,16 @@ def dp_update(rho, drho, lxx, lxz, lzx, lzz, sxx, szz, sxz, syy, dt, shear_mod, 
     dyy = s_yy - m
     j2 = 0.5 * (dxx * dxx + dzz * dzz + dyy * dyy) + s_xz * s_xz
     lim = -alpha_phi * i1 + k_c
+    if alpha_psi > 0.0 and rho > rho_crit and j2 > lim * lim and j2 > 0.0:
+        sj = math.sqrt(j2)
+        dlam = (sj - lim) / (shear_mod + 9.0 * bulk_mod * alpha_phi * alpha_psi)
+        if sj > shear_mod * dlam:
+            rr = 1.0 - shear_mod * dlam / sj
+            m = (i1 - 9.0 * bulk_mod * alpha_psi * dlam) / 3.0
+        else:  # the apex of the cone
+            rr = 0.0
+            m = k_c / (3.0 * alpha_phi) if alpha_phi > 0.0 else m
+        return rho, dxx * rr + m, dzz * rr + m, s_xz * rr, dyy * rr + m
     if j2 > lim * lim and j2 > 0.0:
         rr = lim / math.sqrt(j2)
         dxx *= rr
@@ -319,6 +339,7 @@ def _strain_stress_one(k, X, Z, VX, VZ, VOL, RHO, NOX, NOZ, KND, DCL, cell_index
     ncx, ncz, dt, rlist, build = par.ncx, par.ncz, par.dt, par.rlist, par.build
     shear_mod, bulk_mod, alpha_phi, k_c = par.shear_mod, par.bulk_mod, par.alpha_phi, par.k_c
     rho_min, rho_max = par.rho_min, par.rho_max
+    alpha_psi, rho_crit = par.alpha_psi, par.rho_crit
     sup2, dwc, inv_h = _support(h)
     i = cell_index[k]
     xi = X[k]
@@ -351,7 +372,7 @@ def _strain_stress_one(k, X, Z, VX, VZ, VOL, RHO, NOX, NOZ, KND, DCL, cell_index
     dr, gxx, gxz, gzx, gzz = acc
     rho[i], sxx[i], szz[i], sxz[i], syy[i] = dp_update(
         rho[i], dr, gxx, gxz, gzx, gzz, sxx[i], szz[i], sxz[i], syy[i], dt, shear_mod,
-        bulk_mod, alpha_phi, k_c, rho_min, rho_max)
+        bulk_mod, alpha_phi, k_c, rho_min, rho_max, alpha_psi, rho_crit)
 
 
 @_source

@@ -91,7 +91,8 @@ def simulate_case(params: dict, checkpoint: str | None = None):
         if "density_kg_m3" in m:
             mat = sph.materials.from_properties(m["medium"], m["density_kg_m3"], m["friction_deg"])
         else:
-            mat = sph.materials.from_medium(m["medium"], friction_deg=m.get("friction_deg"))
+            mat = sph.materials.from_medium(m["medium"], friction_deg=m.get("friction_deg"),
+                                            dilatancy=m.get("dilatancy", "none"))
         return sph.simulate(leg, motion, mat, quick=m["quick"], config=cfg,
                             thickness=m["thickness_cm"] * CM,
                             bed_width=m["bed_width_cm"] * CM if "bed_width_cm" in m else None,

@@ -66,7 +66,7 @@ MODEL_KEYS = {
     "sph": {"medium": str, "quick": bool, "dx_mm": float, "hdx": float, "cfl": float, "av_alpha": float,
             "av_beta": float, "wall_layers": int, "noslip": bool, "settle_time_s": float,
             "lowpass_hz": float, "thickness_cm": float, "bed_width_cm": float, "bed_depth_cm": float,
-            "boundary": str, "friction_deg": float, "density_kg_m3": float},
+            "boundary": str, "friction_deg": float, "density_kg_m3": float, "dilatancy": str},
 }
 ID_LENGTH = 12
 
@@ -404,6 +404,17 @@ def _resolve_sph(opts: dict) -> dict:
     for k in ("friction_deg", "density_kg_m3"):
         if k in opts:
             out[k] = _canon(opts[k])
+    if opts.get("dilatancy", "none") != "none":  # absent = "none": case ids of older stores kept
+        from ..sph.materials import from_medium
+
+        if own:
+            raise InputError("model.dilatancy", "'bolton' needs a Li 2013 medium with both "
+                                                "packings, not density_kg_m3")
+        try:
+            from_medium(medium, friction_deg=opts.get("friction_deg"), dilatancy=opts["dilatancy"])
+        except InputError as e:
+            raise InputError("model.dilatancy", str(e).split(": ", 1)[-1]) from None
+        out["dilatancy"] = opts["dilatancy"]
     if cfg.settle_time is not None:
         out["settle_time_s"] = _canon(cfg.settle_time)
     if cfg.lowpass_hz is not None:
