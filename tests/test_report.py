@@ -6,7 +6,6 @@ import json
 import re
 import shutil
 
-import numpy as np
 import pytest
 
 from terradyn.cli import main
@@ -45,8 +44,8 @@ def test_every_claim_has_a_verdict_computed_from_its_numbers(quick_report):
     assert disk["summary"] == rep["summary"]
     assert [p["name"] for p in disk["parts"]] == list(PART_NAMES)
     ids = [c["id"] for p in disk["parts"] for c in p["cards"]]
-    for want in ("interp-holdout", "legs-flat", "legs-c", "legs-reverse-c", "rft-vs-sph", "rft-sph-experiment",
-                 "rft-vs-s12", "foot-lengths", "foot-trials", "dddas-ranks", "dddas-cv-flat", "dddas-pf-flat",
+    for want in ("interp-holdout", "legs-flat", "legs-c", "legs-reverse-c", "legs-closed-forms", "rft-vs-sph",
+                 "rft-sph-experiment", "rft-vs-s12", "foot-lengths", "foot-trials", "dddas-ranks", "dddas-cv-flat", "dddas-pf-flat",
                  "dddas-foot", "sph-bed", "sph-plate", "sph-rig", "sph-legs"):
         assert want in ids
     assert len(disk["claims"]) == disk["summary"]["n_claims"] > 50
@@ -149,3 +148,30 @@ def test_page_in_a_real_browser(quick_report, tmp_path):
         assert page.evaluate("document.documentElement.scrollWidth <= window.innerWidth + 1")
         ctx.close()
     assert errors == []
+
+
+def test_full_tier_judges_a_fresh_validation_run(tmp_path, monkeypatch):
+    """The full tier's plumbing, with the SPH validation (hours) replaced by a stand-in
+    returning one bed check: its verdict is judged from its numbers and the run is cached."""
+    from terradyn.sph import suite
+
+    calls = []
+
+    def fake_validate(**kw):
+        calls.append(kw)
+        kw["figures_dir"].joinpath("bed.png").write_bytes((tmp_path / "x.png").read_bytes())
+        return {"checks": [suite.Check("bed", "d(-sigma_zz)/d(depth) / (rho g)", 1.3, 1.0, "analytic",
+                                       "within 5 %", True).describe()], "settings": {}}
+
+    from terradyn.plots import _save, plt
+
+    fig = plt.figure(figsize=(1, 1))
+    _save(fig, tmp_path / "x.png")
+    plt.close(fig)
+    monkeypatch.setattr(suite, "validate", fake_validate)
+    rep = reproduce(tmp_path / "r", "full", parts=["sph"])
+    (card,) = rep["parts"][0]["cards"]
+    assert card["id"] == "sph-bed" and card["figures"] == ["bed.png"]
+    assert card["claims"][0]["verdict"] == "differs"  # 1.3 is not within 5 % of 1: the stored "pass" is not trusted
+    again = reproduce(tmp_path / "r", "full", parts=["sph"])
+    assert len(calls) == 1 and again["provenance"]["parts"]["sph-run"]["cached"]

@@ -29,9 +29,9 @@ blockquote{margin:.6rem 0;padding:.4rem .8rem;border-left:4px solid #8c959f;back
 cite{display:block;font-size:.8rem;color:var(--muted);font-style:normal;margin-top:.2rem}
 .note{font-size:.85rem;color:var(--muted)}
 .scroll{overflow-x:auto;-webkit-overflow-scrolling:touch}
-table{border-collapse:collapse;width:100%;font-size:.85rem;margin:.5rem 0}
+table{border-collapse:collapse;width:100%;font-size:.85rem;margin:.5rem 0;overflow-wrap:normal}
 th,td{border:1px solid var(--line);padding:.25rem .45rem;text-align:left;vertical-align:top}
-th{background:#eef1f4}
+th{background:#eef1f4;white-space:nowrap}
 td.num{text-align:right;font-variant-numeric:tabular-nums;white-space:nowrap}
 .missing{padding:1rem;border:1px dashed var(--bad);color:var(--bad)}
 footer{margin-top:2rem;font-size:.85rem;color:var(--muted)}

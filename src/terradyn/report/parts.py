@@ -114,7 +114,44 @@ def legs_part(out: Path, s: dict) -> list[Card]:
                           rows, [f"rft_{leg}.png", f"frames_{leg}.png"],
                           note=f"RFT, 3 mm glass CP, measured grid (linear), {s['n_elements']} elements, "
                                f"{s['n_theta']} angles; the frames show the element forces."))
+    cards.append(_closed_form_card(out, s))
     return cards
+
+
+def _closed_form_card(out: Path, s: dict) -> Card:
+    """The general engine against the thesis's closed-form kinematics at the same nodes."""
+    from ..geometry import make_leg
+    from ..media import stress_model
+    from ..motion import standard_rotation
+    from ..plots import AXIS_LABEL, FORCE_LABEL, LEG_COLORS, STYLE, _save, plt
+    from ..rft import net_forces
+    from ..rft.thesis import SHAPES, closed_form_forces
+
+    rot = standard_rotation(s["n_theta"])
+    model = stress_model("3 mm glass CP", "table", interp="linear")
+    src = f"{THESIS} ch. 2 (closed forms per leg shape), as written out in {BRIEF} sec. 2.2"
+    rows = []
+    with plt.rc_context(STYLE):
+        fig, ax = plt.subplots(figsize=(5.2, 3.0))
+        for leg in SHAPES:
+            fx, fz, _ = net_forces(make_leg(leg, n=s["n_elements"]), rot.trajectory(), model)
+            cx, cz = closed_form_forces(leg, rot.theta, model, n=s["n_elements"], nodes="midpoint")
+            err = max(np.abs(fz - cz).max(), np.abs(fx - cx).max()) / np.abs(fz).max()
+            rows.append(check("legs", f"max |engine - closed form| / peak lift, {leg} leg (same nodes)", err, None,
+                              src, "< 1e-9"))
+            ax.plot(np.degrees(rot.theta), fz, color=LEG_COLORS[leg], label=f"{leg}: engine")
+            ax.plot(np.degrees(rot.theta), cz, "o", ms=2.5, mfc="none", color=LEG_COLORS[leg],
+                    label=f"{leg}: closed form", markevery=max(1, s["n_theta"] // 30))
+        ax.set_xlabel(AXIS_LABEL["theta"])
+        ax.set_ylabel(FORCE_LABEL["Fz"])
+        fig.legend(*ax.get_legend_handles_labels(), loc="outside right center", frameon=False, fontsize=7)
+        _close(_save(fig, out / "closed_forms.png"))
+    return Card("legs-closed-forms", "The general engine against the thesis's closed forms",
+                "The thesis derives closed-form angles and depths per leg shape (each element a point on a rigid "
+                "pendulum about the hip); a general engine must reproduce them where they are right.", src, rows,
+                ["closed_forms.png"],
+                note="Both at the midpoint nodes; the thesis's own nodes alpha_i = i pi/n are a one-sided rule "
+                     "(first-order error; tests/test_rft_thesis.py, docs/rft.md).")
 
 
 # -------------------------------------------------------------- RFT vs SPH vs experiment
@@ -196,6 +233,10 @@ def rft_sph_part(out: Path, s: dict) -> list[Card]:
     # (b) RFT and SPH against the measured curves (Li 2013 Fig. S5), MSE bars
     exp = measured_legs()
     sph_rms = _sph_leg_rms(s["sph_results"])
+    omegas = sorted({r.get("settings", {}).get("omega_rad_s") for r in s["sph_results"]
+                     if any(c["scene"] == "legs" for c in r["checks"])} - {None})
+    sph_rate = (f" (SPH legs run at omega = {', '.join(f'{w:g}' for w in omegas)} rad/s, a cost choice of the "
+                "validation suite; the measurements are at 0.2 rad/s)") if omegas else ""
     bars, table = [], []
     for med in LEG_MEDIA:
         m = stress_model(med, "table", interp="linear")
@@ -229,7 +270,7 @@ def rft_sph_part(out: Path, s: dict) -> list[Card]:
                       "component; the C-shaped leg's horizontal force was the worst RFT-vs-experiment match.",
                       src_exp, rows, ["mse_bars.png"], table=table,
                       note="Experiments: the Fig. S5 curves of poppy LP and 0.3 mm glass CP (the thesis's own "
-                           "experiment data are not public). SPH errors: " + s["sph_results_label"] + ". The "
+                           "experiment data are not public). SPH errors: " + s["sph_results_label"] + sph_rate + ". The "
                            "thesis's MSE values are not in the brief, so each row's number has no published twin."))
     # (c) the natural sands of Fig. S12 (generic x fitted zeta)
     summ = studies.experiment_study(out, n_elements=s["n_elements"])
@@ -406,7 +447,7 @@ def load_sph_results(files) -> list[dict]:
                      "ours": d[f"rms_{c}_frac"], "reference": None, "unit": "",
                      "source": f"{LI2013}, Table S5 (grid)", "tolerance": "<= 0.20"} for c in ("z", "x")]
             rows[0]["_rig"] = d
-        out.append({"file": Path(p).name, "checks": rows})
+        out.append({"file": Path(p).name, "checks": rows, "settings": d.get("settings", {})})
     return out
 
 

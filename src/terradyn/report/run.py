@@ -149,7 +149,8 @@ def _sph_inputs(tier: str, out: Path, code: str, say, regenerate: bool) -> tuple
         cached = False
     res = json.loads((folder / "validation.json").read_text())
     timing = {"seconds": round(json.loads(meta.read_text())["seconds"], 2), "cached": cached}
-    return [{"file": "validation.json", "checks": res["checks"]}], "this run's SPH validation (full tier)", \
+    return [{"file": "validation.json", "checks": res["checks"], "settings": res.get("settings", {})}], \
+        "this run's SPH validation (full tier)", \
         [folder / "validation.json"], timing
 
 
