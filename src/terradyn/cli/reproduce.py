@@ -20,10 +20,9 @@ def reproduce_cmd(
     """The thesis reproduced: every claim a card with our figure, the published number and
     its source, our number, the tolerance and a computed verdict. Parts are cached by the
     hash of their inputs: a rerun redoes only what changed."""
-    from ..errors import InputError
+    from ..errors import InputError, choice
     from ..io import check_writable
     from ..report import PART_NAMES, reproduce
-    from ..errors import choice
     from . import err
 
     if quick and full:

@@ -22,7 +22,7 @@ import shutil
 import subprocess
 import time
 from datetime import datetime, timezone
-from importlib import metadata, resources
+from importlib import metadata
 from pathlib import Path
 from typing import Callable
 
