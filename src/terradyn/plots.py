@@ -26,17 +26,21 @@ AXIS_LABEL = {"theta": r"leg angle $\theta$ (deg)", "time": "time (s)"}
 FORCE_LABEL = {"Fz": r"lift $F_z$ (N)", "Fx": r"thrust $F_x$ (N)", "torque": r"torque (N m)"}
 
 
-def _save(fig, path):
+def _save(fig, path, tight: bool = False):
+    """Save at 200 dpi; ``tight`` crops to the drawn artists (for figures whose fixed aspect
+    ratio keeps the layout engine from fitting the labels)."""
     if path is not None:
         path = Path(path)
         path.parent.mkdir(parents=True, exist_ok=True)
-        fig.savefig(path, dpi=200)
+        fig.savefig(path, dpi=200, **({"bbox_inches": "tight", "pad_inches": 0.04} if tight else {}))
     return fig
 
 
 def _shade_phases(ax, coord):
     if coord == "theta":
-        ax.axvspan(ax.get_xlim()[0], 0, color="0.93", zorder=0, lw=0)
+        lo, hi = ax.get_xlim()
+        ax.axvspan(lo, 0, color="0.93", zorder=0, lw=0)
+        ax.set_xlim(lo, hi)  # the span must not widen the axis (shared axes grew by a margin each)
         ax.axhline(0, color="0.5", lw=0.6, zorder=1)
         ax.text(0.02, 0.97, "intrusion", transform=ax.transAxes, va="top", fontsize=7, color="0.4")
         ax.text(0.98, 0.97, "extraction", transform=ax.transAxes, va="top", ha="right",
@@ -126,7 +130,7 @@ def frames(leg, theta_deg, fx, fz, x, z, path=None, title: str = "", hip_height:
     theta_deg (K,); fx, fz, x, z: (K, n) per-element forces (N) and positions (m)."""
     K = len(theta_deg)
     with plt.rc_context(STYLE):
-        fig, axes = plt.subplots(1, K, figsize=(1.7 * K + 0.4, 2.6), sharey=True)
+        fig, axes = plt.subplots(1, K, figsize=(1.7 * K + 0.4, 3.0), sharey=True)
         axes = np.atleast_1d(axes)
         fmax = np.hypot(fx, fz).max() or 1.0
         L = np.hypot(x, z - hip_height).max()
@@ -146,7 +150,7 @@ def frames(leg, theta_deg, fx, fz, x, z, path=None, title: str = "", hip_height:
         axes[0].set_ylabel("z (cm)")
         note = f"force arrows: 1 cm = {1 / (scale * 100):.2g} N; sand shaded"
         fig.suptitle(f"{title}\n{note}" if title else note)
-        return _save(fig, path)
+        return _save(fig, path, tight=True)
 
 
 def foot_forces(ds: xr.Dataset, path=None, title: str = ""):
@@ -193,10 +197,12 @@ def model_vs_measured(pred: dict, meas: dict, path=None, title: str = ""):
                                 label=f"{leg} measured")
                 ax.set_ylabel(FORCE_LABEL[comp])
                 ax.set_title(med, loc="left")
+                ax.set_xlim(-135, 135)  # the test's range of theta
                 _shade_phases(ax, "theta")
                 if r == len(media) - 1:
                     ax.set_xlabel(AXIS_LABEL["theta"])
-        axes[0][0].legend(frameon=False, ncols=2, fontsize=7)
+        handles, labels = axes[0][0].get_legend_handles_labels()
+        fig.legend(handles, labels, loc="outside lower center", ncols=3, frameon=False, fontsize=7)
         if title:
             fig.suptitle(title)
         return _save(fig, path)

@@ -24,6 +24,18 @@ def _xlabel(coord: str) -> str:
     return "leg angle theta (deg)" if coord == "theta" else "time (s)"
 
 
+_COND_UNITS = {"_rad_s": "rad/s", "_cm": "cm", "_deg": "deg", "_m": "m"}
+_COND_NAMES = {"omega": "angular speed omega", "length": "foot length", "hip_height": "hip height"}
+
+
+def condition_label(name: str) -> str:
+    """A condition coordinate for an axis: ``omega_rad_s`` -> 'angular speed omega (rad/s)'."""
+    suffix = next((u for u in _COND_UNITS if name.endswith(u)), "")
+    base = name[:len(name) - len(suffix)]
+    words = _COND_NAMES.get(base, base.replace("_", " "))
+    return f"{words} ({_COND_UNITS[suffix]})" if suffix else words
+
+
 def explained_variance(surrogate, path, title: str = "") -> Path:
     """Cumulative explained variance per HOSVD mode, with the energy threshold and the kept ranks."""
     plt = _plt()
@@ -44,6 +56,17 @@ def explained_variance(surrogate, path, title: str = "") -> Path:
     return path
 
 
+def _band(ax, x, y, std, color, alpha, label) -> bool:
+    """A +-2 std band, drawn and named in the legend only where it is wider than the line
+    (about 0.5 % of the curve's range): a legend must not name a band nobody can see."""
+    y, std = np.asarray(y, float), np.asarray(std, float)
+    span = float(np.ptp(y)) or 1.0
+    if not np.isfinite(std).any() or np.nanmax(4 * std) < 0.005 * span:
+        return False
+    ax.fill_between(x, y - 2 * std, y + 2 * std, color=color, alpha=alpha, lw=0, label=label)
+    return True
+
+
 def prediction(pred: xr.Dataset, path, truth: xr.Dataset | None = None, title: str = "",
                observations: xr.Dataset | None = None, prior: xr.Dataset | None = None,
                truth_label: str = "truth") -> Path:
@@ -58,15 +81,16 @@ def prediction(pred: xr.Dataset, path, truth: xr.Dataset | None = None, title: s
         if prior is not None:
             ax.plot(x, prior[v].values, color="0.5", ls="--", lw=1, label="prior (surrogate)")
             if f"{v}_std" in prior:
-                ax.fill_between(x, prior[v] - 2 * prior[f"{v}_std"], prior[v] + 2 * prior[f"{v}_std"],
-                                color="0.5", alpha=0.15, lw=0)
+                _band(ax, x, prior[v].values, prior[f"{v}_std"].values, "0.5", 0.15, "prior +-2 std")
         if observations is not None and v in observations:
             ax.plot(observations[c].values, observations[v].values, ".", ms=2, color="tab:orange",
                     alpha=0.6, label="observations")
-        ax.plot(x, pred[v].values, color="tab:blue", label=pred.attrs.get("model", "prediction"))
+        name = pred.attrs.get("model", "prediction")
         if f"{v}_std" in pred:
-            ax.fill_between(x, pred[v] - 2 * pred[f"{v}_std"], pred[v] + 2 * pred[f"{v}_std"],
-                            color="tab:blue", alpha=0.25, lw=0, label="+-2 std")
+            drawn = _band(ax, x, pred[v].values, pred[f"{v}_std"].values, "tab:blue", 0.3, f"{name} +-2 std")
+            if not drawn:
+                name += " (+-2 std band narrower than the line)"
+        ax.plot(x, pred[v].values, color="tab:blue", label=name)
         if truth is not None:
             ax.plot(truth[c].values, truth[v].values, color="k", lw=1, label=truth_label)
         ax.set_xlabel(_xlabel(c))
@@ -88,7 +112,7 @@ def cv_errors(cv: xr.Dataset, path, title: str = "", reported: float | None = No
     label = names[0] if names else "case"
     xv = cv[label].values if names else cv["case"].values
     comps = list(cv["component"].values)
-    fig, axes = plt.subplots(1, len(comps), figsize=(5 * len(comps), 4), constrained_layout=True, squeeze=False)
+    fig, axes = plt.subplots(1, len(comps), figsize=(5 * len(comps), 4.4), layout="constrained", squeeze=False)
     idx = np.arange(len(xv))
     for ax, comp in zip(axes[0], comps):
         ax.bar(idx - 0.2, cv["mse"].sel(component=comp).values, 0.4, label="surrogate (held out)")
@@ -99,10 +123,11 @@ def cv_errors(cv: xr.Dataset, path, title: str = "", reported: float | None = No
         if reported is not None:
             ax.axhline(reported, color="tab:red", ls=":", label=f"thesis reported ~{reported:g} (SPH, ten speeds)")
         ax.set_xticks(idx, [f"{v:g}" for v in xv], rotation=45, fontsize=8)
-        ax.set_xlabel(f"held-out condition: {label}")
+        ax.set_xlabel(f"held-out condition: {condition_label(label)}")
         ax.set_ylabel(f"mean square error of {comp} ({UNITS.get(comp, 'N')}^2)")
         ax.set_yscale("log")
-        ax.legend(fontsize=8)
+    handles, labels = axes[0][0].get_legend_handles_labels()  # below the panels, off the bars
+    fig.legend(handles, labels, loc="outside lower center", ncols=len(labels), fontsize=8, frameon=False)
     fig.suptitle(title or "leave-one-condition-out cross-validation")
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)

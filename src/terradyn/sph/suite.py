@@ -51,8 +51,8 @@ class Check:
                 "verdict": {True: "pass", False: "fail", None: "no published number"}[self.passed]}
 
 
-def _r(v):
-    return None if v is None else (round(float(v), 5) if math.isfinite(v) else None)
+def _r(v):  # six significant digits (small numbers keep theirs)
+    return None if v is None else (float(f"{float(v):.6g}") if math.isfinite(v) else None)
 
 
 def measured_legs():
