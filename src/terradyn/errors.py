@@ -78,3 +78,37 @@ def choice(field: str, value: str, allowed: list[str] | tuple[str, ...]) -> str:
     if value not in allowed:
         raise InputError(field, f"unknown value {value!r}; allowed: {', '.join(allowed)}")
     return value
+
+
+#: Environment variable capping the memory one command may plan to use, GiB.
+MEMORY_ENV = "TERRADYN_MAX_MEMORY_GB"
+
+
+def memory_limit() -> int:
+    """Bytes a single allocation plan may use: ``TERRADYN_MAX_MEMORY_GB`` or half of the
+    machine's physical memory."""
+    import os
+
+    env = os.environ.get(MEMORY_ENV)
+    if env:
+        try:
+            return int(float(env) * 2**30)
+        except ValueError:
+            pass
+    try:
+        return int(os.sysconf("SC_PAGE_SIZE") * os.sysconf("SC_PHYS_PAGES") // 2)
+    except (ValueError, OSError, AttributeError):  # pragma: no cover - non-POSIX
+        return 8 * 2**30
+
+
+def check_memory(field: str, nbytes: float, what: str) -> None:
+    """Raise :class:`InputError` on ``field`` when ``what`` would need ``nbytes`` (an
+    estimate) beyond :func:`memory_limit`: the check runs before the allocation."""
+    limit = memory_limit()
+    if nbytes > limit:
+        raise InputError(field, f"{what} would need about {_gib(nbytes)} of memory, more than the "
+                                f"limit {_gib(limit)} (half the RAM; set {MEMORY_ENV} to change it)")
+
+
+def _gib(n: float) -> str:
+    return f"{n / 2**30:.3g} GiB"

@@ -26,6 +26,7 @@ from typing import Sequence
 import numpy as np
 import xarray as xr
 
+from .compare import mse_values, peak_of
 from .errors import InputError, choice, finite_array, in_range, integer, positive
 from .units import CM, DEG
 
@@ -167,23 +168,10 @@ def sampling_rate(trial: xr.Dataset, tolerance: float = 0.05) -> float:
 
 
 def butter_lowpass(x, fs: float, cutoff_hz: float, order: int = 4) -> np.ndarray:
-    """Zero-phase Butterworth low-pass of x (n,) sampled at fs (Hz): the filter runs forward
-    and backward (``sosfiltfilt``), so the effective order doubles and the phase lag is zero."""
-    from scipy.signal import butter, sosfiltfilt
+    """Zero-phase Butterworth low-pass of x (n,) sampled at fs (Hz): :func:`terradyn.signal.lowpass`."""
+    from .signal import lowpass as _lowpass
 
-    fs = positive("sampling rate", fs, "Hz")
-    cutoff_hz = positive("cutoff", cutoff_hz, "Hz")
-    order = integer("order", order, 1)
-    if order > 12:
-        raise InputError("order", f"must be <= 12, got {order}")
-    if cutoff_hz >= fs / 2:
-        raise InputError("cutoff", f"must be below the Nyquist frequency {fs / 2:g} Hz, got {cutoff_hz:g}")
-    x = finite_array("signal", x, ndim=1)
-    sos = butter(order, cutoff_hz, btype="low", fs=fs, output="sos")
-    padlen = 3 * (2 * len(sos) + 1)
-    if len(x) <= padlen:
-        raise InputError("signal", f"too short to filter with order {order}: need more than {padlen} samples, got {len(x)}")
-    return sosfiltfilt(sos, x)
+    return _lowpass(x, fs, cutoff_hz, order)
 
 
 def lowpass(trial: xr.Dataset, cutoff_hz: float = 10.0, order: int = 4,
@@ -311,9 +299,8 @@ def compare(trial: xr.Dataset, length: float = 27.0 * CM, zeta: float | None = N
         out[f"{v}_raw"] = ("time", trial[v].values, trial[v].attrs)
         out[f"{v}_filtered"] = ("time", filt[v].values, trial[v].attrs)
         out[f"{v}_model"] = ("time", model, trial[v].attrs)
-        d = filt[v].values - model
-        stats[f"{v}_mse"] = float(np.mean(d ** 2))
-        stats[f"{v}_peak_difference"] = float(filt[v].values.max() - model.max())
+        stats[f"{v}_mse"] = mse_values(filt[v].values, model)
+        stats[f"{v}_peak_difference"] = peak_of(filt[v].values)[0] - peak_of(model)[0]
     out.attrs.update(stats)
     out.attrs.update(model=json.dumps({"length_m": length, "zeta": zeta, "offset_N": offset, "medium": medium}),
                      filter=filt.attrs["filter"], synthetic=int(trial.attrs.get("synthetic", 0)),

@@ -28,9 +28,9 @@ FORCE_LABEL = {"Fz": r"lift $F_z$ (N)", "Fx": r"thrust $F_x$ (N)", "torque": r"t
 
 def _save(fig, path):
     if path is not None:
-        path = Path(path)
-        path.parent.mkdir(parents=True, exist_ok=True)
-        fig.savefig(path, dpi=200)
+        from .io import atomic_save
+
+        atomic_save(path, lambda t: fig.savefig(t, dpi=200))
     return fig
 
 

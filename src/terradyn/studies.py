@@ -33,7 +33,7 @@ def _out(out) -> Path:
 
 
 def _write_json(path: Path, obj) -> None:
-    path.write_text(json.dumps(obj, indent=2, sort_keys=True) + "\n")
+    io.atomic_write_text(path, json.dumps(obj, indent=2, sort_keys=True) + "\n")
 
 
 def interp_study(out, map_medium: str = "3 mm glass CP") -> dict:

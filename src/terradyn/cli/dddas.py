@@ -9,6 +9,8 @@ from typing import List, Optional
 
 import typer
 
+from . import sub_app
+
 Method = Enum("Method", {"pf": "pf", "exact": "exact"}, type=str)
 Resampler = Enum("Resampler", {"systematic": "systematic", "multinomial": "multinomial"}, type=str)
 Study = Enum("Study", {"legs": "legs", "foot": "foot"}, type=str)
@@ -45,7 +47,7 @@ def _estimator(inputs, energy, step_energy, center, restarts, seed):
 
 
 def register(app: typer.Typer) -> None:
-    dd = typer.Typer(help="DDDAS: surrogate (HOSVD + Gaussian processes) and online assimilation.",
+    dd = sub_app(help="DDDAS: surrogate (HOSVD + Gaussian processes) and online assimilation.",
                      no_args_is_help=True)
     app.add_typer(dd, name="dddas")
 

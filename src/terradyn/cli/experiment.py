@@ -8,6 +8,8 @@ from typing import List, Optional
 
 import typer
 
+from . import sub_app
+
 
 def _pairs(items: List[str], field: str) -> dict:
     from ..errors import InputError
@@ -32,7 +34,7 @@ _UNIT = "Unit VAR=UNIT (time ms|s|us; angles deg|rad; speeds deg/s|rad/s; torque
 
 
 def register(app: typer.Typer) -> None:
-    ex = typer.Typer(help="Experimental trials: filter, compare with RFT, calibrate, synthesize.",
+    ex = sub_app(help="Experimental trials: filter, compare with RFT, calibrate, synthesize.",
                      no_args_is_help=True)
     app.add_typer(ex, name="experiment")
 

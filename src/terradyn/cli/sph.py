@@ -9,13 +9,15 @@ from typing import Optional
 
 import typer
 
+from . import sub_app
+
 from ..errors import InputError, integer, positive
 from ..geometry import LEG_SHAPES
 
 Leg = Enum("Leg", {s: s for s in LEG_SHAPES}, type=str)
 Backend = Enum("Backend", {b: b for b in ("cpu", "gpu", "auto")}, type=str)
 
-sph_app = typer.Typer(help="SPH (Drucker-Prager granular bed) forces and validation scenes.",
+sph_app = sub_app(help="SPH (Drucker-Prager granular bed) forces and validation scenes.",
                       no_args_is_help=True)
 
 _QUICK = typer.Option(False, "--quick", help="Coarse resolution (4 mm particles) for tests and previews.")

@@ -6,7 +6,9 @@ from typing import Optional
 
 import typer
 
-study_app = typer.Typer(help="Run the brief's studies (datasets + figures into --out).",
+from . import sub_app
+
+study_app = sub_app(help="Run the brief's studies (datasets + figures into --out).",
                         no_args_is_help=True)
 
 

@@ -8,6 +8,8 @@ from typing import Optional
 
 import typer
 
+from . import sub_app
+
 
 def err(msg: str) -> None:
     """A message on stderr, never wrapped (paths and summaries stay greppable)."""
@@ -17,7 +19,7 @@ def err(msg: str) -> None:
 
 
 def register(app: typer.Typer) -> None:
-    sw = typer.Typer(name="sweep", no_args_is_help=True,
+    sw = sub_app(name="sweep", no_args_is_help=True,
                      help="Sweeps of simulations from a TOML spec: local pool or Dask, resumable store.")
 
     @sw.command("plan")

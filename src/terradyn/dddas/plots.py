@@ -7,6 +7,8 @@ from pathlib import Path
 import numpy as np
 import xarray as xr
 
+from ..io import atomic_save
+
 UNITS = {"Fx": "N", "Fz": "N", "torque": "N m"}
 LABELS = {"Fx": "horizontal force Fx", "Fz": "vertical force Fz", "torque": "torque"}
 
@@ -39,7 +41,7 @@ def explained_variance(surrogate, path, title: str = "") -> Path:
     ax.legend(fontsize=8)
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
-    fig.savefig(path, dpi=130)
+    atomic_save(path, lambda t: fig.savefig(t, dpi=130))
     plt.close(fig)
     return path
 
@@ -75,7 +77,7 @@ def prediction(pred: xr.Dataset, path, truth: xr.Dataset | None = None, title: s
     fig.suptitle(title)
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
-    fig.savefig(path, dpi=130)
+    atomic_save(path, lambda t: fig.savefig(t, dpi=130))
     plt.close(fig)
     return path
 
@@ -106,7 +108,7 @@ def cv_errors(cv: xr.Dataset, path, title: str = "", reported: float | None = No
     fig.suptitle(title or "leave-one-condition-out cross-validation")
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
-    fig.savefig(path, dpi=130)
+    atomic_save(path, lambda t: fig.savefig(t, dpi=130))
     plt.close(fig)
     return path
 
@@ -129,7 +131,7 @@ def trial_comparison(cmp: xr.Dataset, path, title: str = "") -> Path:
     fig.suptitle((title or "trial vs RFT") + syn)
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
-    fig.savefig(path, dpi=130)
+    atomic_save(path, lambda t: fig.savefig(t, dpi=130))
     plt.close(fig)
     return path
 
@@ -145,6 +147,6 @@ def ess_trace(ess: np.ndarray, x: np.ndarray, path, n_particles: int, xlabel: st
     ax.set_title(title or "particle filter")
     ax.legend(fontsize=8)
     path = Path(path)
-    fig.savefig(path, dpi=130)
+    atomic_save(path, lambda t: fig.savefig(t, dpi=130))
     plt.close(fig)
     return path
