@@ -27,7 +27,7 @@ import numpy as np
 import xarray as xr
 
 from .compare import mse_values, peak_of
-from .errors import InputError, choice, finite_array, in_range, integer, positive
+from .errors import InputError, choice, finite_array, in_range, positive
 from .units import CM, DEG
 
 #: Trial variables, the default CSV column for each and its unit.

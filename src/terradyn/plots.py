@@ -5,8 +5,6 @@ Every function returns the :class:`matplotlib.figure.Figure` and, given ``path``
 """
 from __future__ import annotations
 
-from pathlib import Path
-
 import matplotlib
 
 matplotlib.use("Agg", force=False)

@@ -177,7 +177,8 @@ def _finite_floats(cmd) -> None:
 
             def cb(ctx, param, value, _orig=orig):
                 if isinstance(value, float) and not math.isfinite(value):
-                    raise typer.BadParameter(f"must be a finite number, got {value!r}", ctx=ctx, param=param)
+                    name = (param.opts[0] if getattr(param, "opts", None) else str(param.name)).lstrip("-")
+                    raise InputError(name, f"must be a finite number, got {value!r}")
                 return _orig(ctx, param, value) if _orig else value
 
             p.callback = cb
@@ -186,7 +187,7 @@ def _finite_floats(cmd) -> None:
         _finite_floats(sub)
 
 
-def command() -> click.Command:
+def command():
     """The whole CLI as one click command (for ``click.testing.CliRunner`` and :func:`main`)."""
     _register_all()
     cmd = typer.main.get_command(app)

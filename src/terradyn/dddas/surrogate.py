@@ -359,18 +359,16 @@ class Surrogate(BaseEstimator):
         ds["gp_theta"].attrs["long_name"] = "log-hyperparameters of each coefficient's GP kernel"
         return ds
 
-    def save(self, path) -> "Path":
+    def save(self, path):
         """Write the model to a NetCDF file (.nc). No pickle: arrays and JSON attributes."""
         from pathlib import Path
 
         path = Path(path)
         if path.suffix.lower() != ".nc":
             raise InputError("model file", f"must end in .nc, got {path.name}")
-        path.parent.mkdir(parents=True, exist_ok=True)
-        tmp = path.with_name(f".{path.name}.tmp")
-        self.to_dataset().to_netcdf(tmp, engine="h5netcdf")
-        tmp.replace(path)
-        return path
+        from ..io import write_netcdf
+
+        return write_netcdf(self.to_dataset(), path)
 
     @classmethod
     def from_dataset(cls, ds: xr.Dataset) -> "Surrogate":

@@ -19,6 +19,8 @@ from .state import SPHConfig
 #: Particle spacing of the full runs (m) and of the quick form used by tests.
 FULL_DX = 2.5e-3
 QUICK_DX = 4.0e-3
+#: Memory per particle (state, neighbour lists, work arrays), bytes: an upper estimate.
+PARTICLE_BYTES = 4096
 
 
 def default_config(quick: bool = False, **kw) -> SPHConfig:
@@ -90,6 +92,11 @@ def simulate_run(leg: Leg, motion: Rotation | PlanarMotion, medium: str | Granul
         w_auto, d_auto = bed_extent(leg, traj, i0, i1, pad)
         bw = bed_width or w_auto
         bd = bed_depth or d_auto
+        from ..errors import check_memory
+
+        n_est = (bw / cfg.dx + 2 * cfg.wall_layers) * (bd / cfg.dx + cfg.wall_layers)
+        check_memory("dx-mm", n_est * PARTICLE_BYTES, f"a bed of about {n_est:,.0f} particles "
+                                                      f"(dx = {cfg.dx * 1e3:g} mm)")
         scene = leg_scene(leg, traj, i0, mat, bed_width=bw, bed_depth=bd, thickness=thickness,
                           config=cfg)
         duration = float(traj.time[i1] - traj.time[i0])

@@ -316,7 +316,7 @@ def _typed(sec: str, d: dict, keys: dict) -> dict:
 def resolve(model: str, raw: dict) -> dict:
     """Fill defaults and canonicalise one case's parameters (field units); raises
     :class:`InputError` naming the key of any bad value."""
-    from .. import geometry, media, motion as mo
+    from .. import geometry, motion as mo
 
     leg = _typed("leg", raw.get("leg", {}), LEG_KEYS)
     shape = leg.get("shape")
