@@ -112,3 +112,28 @@ def check_memory(field: str, nbytes: float, what: str) -> None:
 
 def _gib(n: float) -> str:
     return f"{n / 2**30:.3g} GiB"
+
+
+class renamed:
+    """Context manager: an :class:`InputError` raised inside on a field in ``names`` comes
+    out on the caller's name for it (e.g. the library's ``rate`` is the CLI's ``rate-hz``)."""
+
+    def __init__(self, **names: str):
+        self.names = {k.replace("__", "-"): v for k, v in names.items()}
+
+    def __enter__(self):
+        return self
+
+    def __exit__(self, typ, e, tb):
+        if isinstance(e, InputError) and e.field in self.names:
+            msg = str(e).split(": ", 1)[-1]
+            raise InputError(self.names[e.field], msg) from None
+        return False
+
+
+def non_negative(field: str, value: Any, unit: str = "") -> float:
+    """Return ``value`` as a float, or raise if it is not a finite number >= 0."""
+    v = finite(field, value, unit)
+    if v < 0:
+        raise InputError(field, f"must be >= 0{' ' + unit if unit else ''}, got {value!r}")
+    return v

@@ -17,7 +17,7 @@ def check_lowpass(fs: float, cutoff_hz: float, order: int = 4, field: str = "cut
     order = integer("order", order, 1)
     if order > MAX_ORDER:
         raise InputError("order", f"must be <= {MAX_ORDER}, got {order}")
-    if cutoff_hz >= fs / 2:
+    if cutoff_hz >= fs / 2 * (1 - 1e-9):  # at Nyquist (to rounding of the sampling rate)
         raise InputError(field, f"must be below the Nyquist frequency {fs / 2:g} Hz of the "
                                 f"{fs:g} Hz sampling, got {cutoff_hz:g} Hz")
 
