@@ -26,8 +26,10 @@ def register(app: typer.Typer) -> None:
     def plan(spec: Path = typer.Argument(..., help="Sweep spec (TOML)."),
              as_json: bool = typer.Option(False, "--json", help="Full resolved cases as JSON.")):
         """Show the cases of SPEC without running them (CSV on stdout: case_id + varied values)."""
+        from .. import io
         from ..sweep import load
 
+        io.check_input(spec, "spec")
         s = load(spec)
         if as_json:
             sys.stdout.write(json.dumps([c.to_json() for c in s.cases], indent=1) + "\n")
@@ -53,9 +55,19 @@ def register(app: typer.Typer) -> None:
             out: Optional[Path] = typer.Option(None, "--out", help="Collect into this NetCDF when all cases are done."),
             quiet: bool = typer.Option(False, "--quiet", "-q", help="No progress bar.")):
         """Run the unfinished cases of SPEC into the store (rerun to resume)."""
+        from .. import io
         from ..sweep import collect, load, run as run_sweep
+        from ..sweep.execute import default_store
+        from ..sweep.store import Store
 
+        io.check_input(spec, "spec")
+        io.check_output(out, "out", (".nc",))
         s = load(spec)
+        Store(store if store is not None else default_store(s)).claim(s)
+        st_path = store if store is not None else default_store(s)
+        io.check_writable(st_path, "store", directory=True)
+        if checkpoint_dir is not None:
+            io.check_writable(checkpoint_dir, "checkpoint-dir", directory=True)
         cb, bar = None, None
         if not quiet:
             from rich.console import Console
@@ -111,8 +123,10 @@ def register(app: typer.Typer) -> None:
                     out: Path = typer.Option(..., "--out", help="Output NetCDF (.nc)."),
                     partial: bool = typer.Option(False, "--partial", help="Collect even if some cases are not done.")):
         """Stack the finished cases into one NetCDF with a `case` dimension (the training tensor)."""
+        from .. import io
         from ..sweep import collect
 
+        io.check_output(out, "out", (".nc",))
         ds = collect(store, out, partial=partial)
         err(f"wrote {out}: {ds.sizes['case']} cases x {dict((k, v) for k, v in ds.sizes.items() if k != 'case')}")
 

@@ -279,6 +279,7 @@ def run(spec: SweepSpec | str | Path, store: str | Path | None = None, *, worker
     if not isinstance(retries, int) or retries < 0:
         raise InputError("retries", f"must be an integer >= 0, got {retries!r}")
     st = Store(store if store is not None else default_store(spec))
+    st.claim(spec)
     st.lock()
     try:
         st.clean_temporaries()
