@@ -12,7 +12,7 @@ import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 import xarray as xr  # noqa: E402
 
-from .series import coord_of  # noqa: E402
+from .series import components as schema_components, coord_of  # noqa: E402
 
 STYLE = {
     "font.size": 9, "axes.labelsize": 9, "axes.titlesize": 9, "legend.fontsize": 8,
@@ -21,7 +21,9 @@ STYLE = {
 }
 LEG_COLORS = {"c": "#1b6ca8", "flat": "#d1495b", "reverse-c": "#2a9d8f", "foot": "#6a4c93"}
 AXIS_LABEL = {"theta": r"leg angle $\theta$ (deg)", "time": "time (s)"}
-FORCE_LABEL = {"Fz": r"lift $F_z$ (N)", "Fx": r"thrust $F_x$ (N)", "torque": r"torque (N m)"}
+FORCE_LABEL = {"Fz": r"lift $F_z$ (N)", "Fx": r"thrust $F_x$ (N)", "Fy": r"lateral force $F_y$ (N)",
+               "torque": r"torque (N m)", "Tx": r"torque $T_x$ (N m)", "Ty": r"torque $T_y$ (N m)",
+               "Tz": r"torque $T_z$ (N m)"}
 
 
 def _save(fig, path):
@@ -41,10 +43,14 @@ def _shade_phases(ax, coord):
                 fontsize=7, color="0.4")
 
 
-def forces(series: dict[str, xr.Dataset], path=None, components=("Fz", "Fx"), title: str = "",
+def forces(series: dict[str, xr.Dataset], path=None, components=None, title: str = "",
            styles: dict[str, dict] | None = None):
     """Force components against the motion coordinate for several labelled series; bands
-    where a series carries ``<component>_std`` (mean +- 2 std)."""
+    where a series carries ``<component>_std`` (mean +- 2 std). ``components``: default the
+    force components of the first series' schema, lift first (2D: Fz, Fx; 3D: Fz, Fx, Fy)."""
+    if components is None:
+        comps = schema_components(next(iter(series.values())))
+        components = ("Fz",) + tuple(c for c in comps if c != "Fz")
     with plt.rc_context(STYLE):
         fig, axes = plt.subplots(1, len(components), figsize=(3.4 * len(components), 2.8), squeeze=False)
         coord = coord_of(next(iter(series.values())))

@@ -67,14 +67,19 @@ def _silence_stdout() -> None:
 
 
 class _Group(TyperGroup):
-    """The root command: turns every failure into one line and an exit code."""
+    """The root command: turns every failure into one line and an exit code, and makes
+    every float option refuse NaN and infinity."""
+
+    def __init__(self, *a, **kw):
+        super().__init__(*a, **kw)
+        _finite_floats(self)
 
     def invoke(self, ctx):
         from ..models import IgnoredOptionWarning
 
         def show(message, category, filename, lineno, file=None, line=None):
-            kind = "warning" if issubclass(category, IgnoredOptionWarning) else category.__name__
-            _plain(f"{kind}: {message}")
+            if issubclass(category, UserWarning) and not issubclass(category, DeprecationWarning):
+                _plain(f"warning: {message}")
 
         with warnings.catch_warnings():
             warnings.simplefilter("always", IgnoredOptionWarning)
@@ -187,18 +192,16 @@ def _finite_floats(cmd) -> None:
         _finite_floats(sub)
 
 
-def command():
-    """The whole CLI as one click command (for ``click.testing.CliRunner`` and :func:`main`)."""
+def get_app() -> typer.Typer:
+    """The Typer app with every command registered (for ``typer.testing.CliRunner``)."""
     _register_all()
-    cmd = typer.main.get_command(app)
-    _finite_floats(cmd)
-    return cmd
+    return app
 
 
 def main(argv: list[str] | None = None) -> int:
     """Run the CLI; returns the exit code (0 ok, 1 I/O, 2 bad input or usage, 130 interrupted)."""
     try:
-        command().main(args=argv, prog_name="terradyn", standalone_mode=True)
+        typer.main.get_command(get_app()).main(args=argv, prog_name="terradyn", standalone_mode=True)
     except SystemExit as e:
         return e.code if isinstance(e.code, int) else (0 if e.code is None else 1)
     return 0

@@ -184,6 +184,7 @@ def register(app: typer.Typer) -> None:
                     ignored(name, "has no effect with --method exact")
         cond = _conditions(at)
         sur = Surrogate.load(model)
+        sur.warn_extrapolation(cond)
         opts = dict(n_particles=particles, resample=resample.value, jitter=jitter, jitter_floor=jitter_floor,
                     rng=seed) if method.value == "pf" else {}
         observations = None

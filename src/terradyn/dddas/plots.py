@@ -9,8 +9,10 @@ import xarray as xr
 
 from ..io import atomic_save
 
-UNITS = {"Fx": "N", "Fz": "N", "torque": "N m"}
+from ..series import LONG_NAMES as _LONG, UNITS  # noqa: E402  (the schema's units)
+
 LABELS = {"Fx": "horizontal force Fx", "Fz": "vertical force Fz", "torque": "torque"}
+LABELS.update({c: f"{_LONG.get(c, c)} {c}" for c in ("Fy", "Tx", "Ty", "Tz")})
 
 
 def _plt():
@@ -49,13 +51,16 @@ def explained_variance(surrogate, path, title: str = "") -> Path:
 def prediction(pred: xr.Dataset, path, truth: xr.Dataset | None = None, title: str = "",
                observations: xr.Dataset | None = None, prior: xr.Dataset | None = None,
                truth_label: str = "truth") -> Path:
-    """Predicted Fx and Fz with +-2 std bands; optional truth, prior and observations."""
+    """Predicted force components (of the series' schema: Fx and Fz in 2D) with +-2 std
+    bands; optional truth, prior and observations."""
     plt = _plt()
-    from ..series import coord_of
+    from ..series import components, coord_of
 
     c = coord_of(pred)
-    fig, axes = plt.subplots(1, 2, figsize=(11, 4), constrained_layout=True)
-    for ax, v in zip(axes, ("Fx", "Fz")):
+    comps = components(pred)
+    fig, axes = plt.subplots(1, len(comps), figsize=(5.5 * len(comps), 4), constrained_layout=True,
+                             squeeze=False)
+    for ax, v in zip(axes[0], comps):
         x = pred[c].values
         if prior is not None:
             ax.plot(x, prior[v].values, color="0.5", ls="--", lw=1, label="prior (surrogate)")

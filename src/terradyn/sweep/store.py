@@ -36,12 +36,24 @@ EVENTS = "events.jsonl"
 LOCK = ".lock"
 
 
-def spec_identity(name: str, model: str, case_ids) -> str:
-    """What binds a store to its spec: a hash of the sweep's name, model and case ids."""
+def spec_identity(name: str, model: str, base: dict) -> str:
+    """What binds a store to its spec: a hash of the sweep's name, model and fixed (base)
+    parameters; the varied grid may grow or shrink."""
     import hashlib
 
-    blob = json.dumps([name, model, sorted(case_ids)])
+    blob = json.dumps([name, model, base], sort_keys=True, default=str)
     return hashlib.sha256(blob.encode()).hexdigest()[:16]
+
+
+def _old_identity(plan: dict) -> str:
+    """The identity of a store written before stores recorded one (from its spec text)."""
+    from .spec import parse
+
+    try:
+        base = parse(plan.get("spec_toml", ""), name=plan.get("name", "")).base
+    except InputError:
+        base = None
+    return spec_identity(plan.get("name", ""), plan.get("model", ""), base)
 
 
 def now() -> str:
@@ -76,7 +88,8 @@ class Store:
     def claim(self, spec) -> None:
         """Refuse (:class:`InputError` on ``store``) a path that this spec must not write: a
         file, a folder with other content that is not a sweep store, or the store of
-        another spec (another name, model or set of cases). Nothing is created or removed."""
+        another spec (another name, model or fixed parameters; the same spec with a grown or
+        shrunk grid is the same sweep). Nothing is created or removed."""
         p = self.path
         if p.exists() and not p.is_dir():
             raise InputError("store", f"{p} is a file, not a sweep store; give another --store")
@@ -87,14 +100,13 @@ class Store:
             return
         if (p / PLAN).is_file():
             plan = self.plan()
-            ours = spec_identity(spec.name, spec.model, [c.id for c in spec.cases])
-            theirs = plan.get("spec_id") or spec_identity(plan.get("name", ""), plan.get("model", ""),
-                                                          [c["id"] for c in plan.get("cases", [])])
+            ours = spec_identity(spec.name, spec.model, spec.base)
+            theirs = plan.get("spec_id") or _old_identity(plan)
             if ours != theirs:
                 raise InputError("store", f"{p} belongs to another spec ({plan.get('name')!r}, model "
-                                          f"{plan.get('model')!r}, {len(plan.get('cases', []))} cases; "
-                                          f"this spec: {spec.name!r}, {spec.model!r}, {len(spec.cases)} "
-                                          "cases); give another --store")
+                                          f"{plan.get('model')!r}, from {plan.get('source') or 'a spec'}; this "
+                                          f"spec: {spec.name!r}, {spec.model!r}, other fixed parameters or "
+                                          "name); give another --store")
 
     def write_plan(self, spec) -> None:
         """Create the store if needed and record ``spec`` and its cases as the plan."""
@@ -105,7 +117,7 @@ class Store:
         plan = {"name": spec.name, "model": spec.model, "description": spec.description,
                 "source": spec.source, "spec_toml": spec.text, "varied": spec.varied,
                 "terradyn_version": __version__, "cases": [c.to_json() for c in spec.cases],
-                "spec_id": spec_identity(spec.name, spec.model, [c.id for c in spec.cases])}
+                "spec_id": spec_identity(spec.name, spec.model, spec.base)}
         _atomic_bytes(self.path / PLAN, json.dumps(plan, indent=1, sort_keys=True).encode())
 
     def plan(self) -> dict:
