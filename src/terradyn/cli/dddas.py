@@ -31,6 +31,8 @@ def _conditions(at: List[str]) -> dict:
         if "=" not in a:
             raise InputError("at", f"expected NAME=VALUE, got {a!r}")
         k, v = a.split("=", 1)
+        if not k.strip():
+            raise InputError("at", f"expected NAME=VALUE, got {a!r} (no name)")
         try:
             out[k.strip()] = float(v)
         except ValueError:

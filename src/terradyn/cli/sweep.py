@@ -60,8 +60,13 @@ def register(app: typer.Typer) -> None:
         from ..sweep.execute import default_store
         from ..sweep.store import Store
 
+        from ..errors import integer
+
         io.check_input(spec, "spec")
         io.check_output(out, "out", (".nc",))
+        if workers is not None:
+            integer("workers", workers, 0)
+        integer("retries", retries, 0)
         s = load(spec)
         Store(store if store is not None else default_store(s)).claim(s)
         st_path = store if store is not None else default_store(s)
