@@ -178,9 +178,13 @@ class Model:
         """Canonical parameters of a sweep case (``name`` and defaults included)."""
         if self.resolve_fn is not None:
             return {"name": self.name, **self.resolve_fn(dict(options))}
+        options = dict(options)
+        medium = options.pop("medium", None)
+        if medium is None:
+            raise InputError("model.medium", "missing; name the granular medium")
         opts = self.check_options(options, field=lambda k: f"model.{k}")
         full = {o.name: o.default for o in self.options if o.default is not None} | opts
-        return {"name": self.name, **full}
+        return {"name": self.name, "medium": medium, **full}
 
     def simulate(self, body, motion, medium, **options):
         """Check the options, run the model, check that it returned a force series of its
