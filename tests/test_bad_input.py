@@ -59,6 +59,8 @@ def files(tmp_path, monkeypatch):
     (tmp_path / "nanleg.csv").write_text("x_cm,z_cm\n0,0\nnan,-4\n0,-7.62\n")
     (tmp_path / "badmotion.csv").write_text("time_s,hip_x_cm\n0,0\n1,1\n")
     (tmp_path / "model.nc").write_text("not read: the bad option fails first")
+    (tmp_path / "binary.csv").write_bytes(bytes(range(256)) * 4)
+    (tmp_path / "garbage.nc").write_text("not NetCDF")
     (tmp_path / "stack.nc").write_text("not read: the bad option fails first")
     t = np.arange(200) / 200.0  # a 200 Hz trial written by hand
     rows = "\n".join(f"{1e3 * x:g},{min(x, 1):g},{0.3 * min(x, 1):g},1,0.3,{0.01 * x:g},{2 * x:g}" for x in t)
@@ -142,6 +144,11 @@ RFT = [
     (["--alpha", "spoon"], 2, "'--alpha'"),
     (["--interp", "spoon"], 2, "'--interp'"),
     (["--alpha", "table", "--table-file", "/no/such.csv"], 2, "table-file"),
+    (["--leg-file", "binary.csv"], 2, "leg-file"),
+    (["--leg-file", "adir"], 2, "leg-file"),
+    (["--motion-file", "binary.csv"], 2, "motion-file"),
+    (["--alpha", "table", "--table-file", "binary.csv"], 2, "table-file"),
+    (["--alpha", "table", "--table-file", "leg.csv"], 2, "table-file"),
     (["-o", "out.txt"], 2, "out"),
     (["-o", "adir"], 2, "out"),
     (["-o", "afile/x.nc"], 2, "out"),
@@ -204,6 +211,8 @@ EXPERIMENT = [
     (["filter", "trial.csv", "--unit", "time=hours"], 2, "unit"),
     (["filter", "trial.csv", "--unit", "bogus=s"], 2, "unit"),
     (["filter", "missing.csv"], 2, "trial"),
+    (["filter", "binary.csv"], 2, "trial"),
+    (["calibrate", "binary.csv"], 2, "trial"),
     (["filter", "trial.csv", "-o", "x.nc"], 2, "out"),
     (["filter", "trial.csv", "-o", "adir"], 2, "out"),
     (["compare", "trial.csv", "-o", "x.csv"], 2, "out"),
@@ -234,6 +243,7 @@ DDDAS = [
     (["fit", "stack.nc", "-o", "afile/m.nc"], 2, "out"),
     (["fit", "stack.nc", "-o", "m.nc", "--plot", "f.xyz"], 2, "plot"),
     (["cv", "missing.nc"], 2, "data"),
+    (["cv", "leg.csv"], 2, "data"),
     (["cv", "stack.nc", "-o", "x.xlsx"], 2, "out"),
     (["cv", "stack.nc", "--baseline", "missing.nc"], 2, "baseline"),
     (["predict", "missing.nc", "--at", "omega=0.5"], 2, "model"),
@@ -262,6 +272,7 @@ DDDAS = [
     (["study", "legs", "--particles", "1000000000", "-o", "o"], 2, "particles"),
     (["study", "legs", "-o", "afile"], 2, "out"),
     (["study", "foot", "--trial", "missing.csv", "-o", "o"], 2, "trial"),
+    (["study", "foot", "--trial", "binary.csv", "-o", "o"], 2, "trial"),
     (["study", "bogus"], 2, "'which'"),
 ]
 

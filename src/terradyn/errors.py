@@ -137,3 +137,24 @@ def non_negative(field: str, value: Any, unit: str = "") -> float:
     if v < 0:
         raise InputError(field, f"must be >= 0{' ' + unit if unit else ''}, got {value!r}")
     return v
+
+
+def open_text(path, field: str):
+    """A text file's content as a stream (``io.StringIO``), or :class:`InputError` on
+    ``field`` when it cannot be read or is not UTF-8 text (a binary file, say)."""
+    import io
+
+    try:
+        with open(path, "rb") as fh:
+            data = fh.read()
+    except IsADirectoryError:
+        raise InputError(field, f"{path} is a directory; give a file") from None
+    except FileNotFoundError:
+        raise InputError(field, f"file not found: {path}") from None
+    except PermissionError:
+        raise InputError(field, f"{path} is not readable (permission denied)") from None
+    try:
+        text = data.decode("utf-8-sig")
+    except UnicodeDecodeError as e:
+        raise InputError(field, f"{path} is not a text (UTF-8) file: byte {e.start} cannot be read") from None
+    return io.StringIO(text, newline=None)

@@ -27,7 +27,7 @@ import numpy as np
 import xarray as xr
 
 from .compare import mse_values, peak_of
-from .errors import InputError, choice, finite_array, in_range, positive
+from .errors import InputError, open_text, choice, finite_array, in_range, positive
 from .units import CM, DEG
 
 #: Trial variables, the default CSV column for each and its unit.
@@ -78,7 +78,7 @@ def read_trial(path: str | Path, columns: dict[str, str] | None = None,
         choice(f"units[{k}]", v, list(_FACTORS[_KIND[k]]))
         uns[k] = v
     header = []
-    with open(path) as fh:
+    with open_text(path, "trial") as fh:
         for line in fh:
             if line.startswith("#"):
                 header.append(line[1:].strip())

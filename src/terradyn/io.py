@@ -162,26 +162,35 @@ def write_netcdf(ds: xr.Dataset, path: str | Path) -> Path:
     return atomic_save(path, lambda t: ds.to_netcdf(t, engine="h5netcdf"))
 
 
-def read(path: str | Path) -> xr.Dataset:
+def read(path: str | Path, field: str = "file") -> xr.Dataset:
     """Read a force series written by :func:`write` (.nc, .zarr, or .csv with a theta_deg or
-    time_s column and Fx_N, Fz_N)."""
+    time_s column and Fx_N, Fz_N); a file that is not one is an :class:`InputError` on
+    ``field``."""
     path = Path(path)
-    suf = _fmt(path, "file")
-    check_input(path, "file")
-    if suf == ".nc":
-        with xr.open_dataset(path, engine="h5netcdf") as f:
-            return f.load()
-    if suf == ".zarr":
-        return xr.open_zarr(path, consolidated=False).load()
-    return read_csv(path)
+    suf = _fmt(path, field)
+    check_input(path, field)
+    try:
+        if suf == ".nc":
+            with xr.open_dataset(path, engine="h5netcdf") as f:
+                return f.load()
+        if suf == ".zarr":
+            return xr.open_zarr(path, consolidated=False).load()
+    except (OSError, ValueError, KeyError) as e:
+        raise InputError(field, f"{path}: not a readable {suf[1:]} dataset ({e})") from None
+    try:
+        return read_csv(path)
+    except InputError as e:
+        if e.field == "file" and field != "file":
+            raise InputError(field, str(e).split(": ", 1)[-1]) from None
+        raise
 
 
 def read_csv(path: Path) -> xr.Dataset:
     import pandas as pd
 
     try:
-        df = pd.read_csv(path)
-    except Exception as e:  # pandas raises many kinds
+        df = pd.read_csv(path, encoding="utf-8")
+    except Exception as e:  # pandas raises many kinds (UnicodeDecodeError for a binary file)
         raise InputError("file", f"{path}: not a readable CSV ({e})") from None
     coord = "theta" if "theta_deg" in df else "time" if "time_s" in df else None
     if coord is None or not {"Fx_N", "Fz_N"} <= set(df.columns):

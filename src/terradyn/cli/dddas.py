@@ -72,7 +72,7 @@ def register(app: typer.Typer) -> None:
         io.check_input(data, "data")
         io.check_output(out, "out", (".nc",))
         io.check_plot(plot)
-        sur = _estimator(inputs, energy, step_energy, center, restarts, seed).fit(io.read(data))
+        sur = _estimator(inputs, energy, step_energy, center, restarts, seed).fit(io.read(data, "data"))
         sur.save(out)
         if plot:
             from ..dddas import plots
@@ -101,9 +101,9 @@ def register(app: typer.Typer) -> None:
         io.check_input(baseline, "baseline")
         io.check_output(out, "out", (".csv", ".nc"))
         io.check_plot(plot)
-        ds = io.read(data)
+        ds = io.read(data, "data")
         res = cross_validate(ds, _estimator(inputs, energy, step_energy, center, restarts, seed),
-                             io.read(baseline) if baseline else None,
+                             io.read(baseline, "baseline") if baseline else None,
                              progress=lambda i, n: _err(f"fold {i}/{n}"))
         if out and out.lower().endswith(".nc"):
             io.write_netcdf(res, out)
@@ -131,7 +131,8 @@ def register(app: typer.Typer) -> None:
         io.check_output(out, "out")
         io.check_plot(plot)
         cond = _conditions(at)
-        sur = Surrogate.load(model)
+        with renamed(**{"model file": "model"}):
+            sur = Surrogate.load(model)
         pred = sur.predict(cond)
         io.emit(pred, out)
         if plot:
@@ -185,7 +186,8 @@ def register(app: typer.Typer) -> None:
                 if v != d:
                     ignored(name, "has no effect with --method exact")
         cond = _conditions(at)
-        sur = Surrogate.load(model)
+        with renamed(**{"model file": "model"}):
+            sur = Surrogate.load(model)
         sur.warn_extrapolation(cond)
         opts = dict(n_particles=particles, resample=resample.value, jitter=jitter, jitter_floor=jitter_floor,
                     rng=seed) if method.value == "pf" else {}
@@ -245,6 +247,10 @@ def register(app: typer.Typer) -> None:
         if which.value == "foot" and data:
             ignored("data", "has no effect with the foot study")
         io.check_input(trial, "trial")
+        if trial is not None and which.value == "foot":
+            from ..experiment import read_trial
+
+            read_trial(trial)  # a bad trial: an error before the study's work
         if which.value == "legs":
             from ..errors import InputError
 
