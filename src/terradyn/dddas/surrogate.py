@@ -380,7 +380,7 @@ class Surrogate(BaseEstimator):
 
         params = self.get_params()
         params["inputs"] = list(params["inputs"]) if params["inputs"] is not None else None
-        params["components"] = list(params["components"])
+        params["components"] = list(params["components"]) if params["components"] is not None else None
         ds.attrs.update(format=FORMAT, format_version=FORMAT_VERSION, coord=c,
                         params=json.dumps(params, default=list), ranks=json.dumps(list(map(int, self.ranks_))),
                         trained_on=json.dumps(self.trained_on_, default=str),
