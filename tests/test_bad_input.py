@@ -192,7 +192,8 @@ SPH = [
     (["bed", "--quick", "--plot", "f.xlsx"], 2, "plot"),
     (["column", "--quick", "--plot", "f.xlsx"], 2, "plot"),
     (["bed", "--quick", "--dx-mm", "0"], 2, "dx-mm"),
-    (["legs", "--quick", "--outdir", "afile"], 2, "outdir"),
+    (["legs", "--quick", "--outdir", "afile"], 2, "out"),
+    (["legs", "--quick", "-o", "afile"], 2, "out"),
     (["legs", "--quick", "--outdir", "o", "--checkpoint-dir", "afile"], 2, "checkpoint-dir"),
     (["legs", "--quick", "--outdir", "o", "--leg", "spoon"], 2, "leg"),
 ]

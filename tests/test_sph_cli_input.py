@@ -96,7 +96,7 @@ def test_legs_outdir_and_checkpoint_dir_that_are_files(no_work, capsys, tmp_path
     afile = tmp_path / "afile"
     afile.write_text("mine")
     assert main(["sph", "legs", "--quick", "--outdir", str(afile)]) == 2
-    _one_line_error(capsys, "outdir", "not a directory")
+    _one_line_error(capsys, "out", "not a directory")
     assert main(["sph", "legs", "--quick", "--outdir", str(tmp_path / "o"),
                  "--checkpoint-dir", str(afile)]) == 2
     _one_line_error(capsys, "checkpoint-dir", "not a directory")

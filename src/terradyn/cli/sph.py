@@ -32,17 +32,12 @@ _BOUNDARY = typer.Option("resolved", "--boundary", help="Leg boundary: resolved 
 
 
 def _material(medium: str, density_kg_m3: float | None, friction_deg: float | None):
-    """The SPH material of the options: a Li 2013 medium (optionally another friction angle)
-    or the user's own from its density and friction angle."""
-    from ..errors import InputError
-    from ..sph.materials import from_medium, from_properties
+    """The SPH material of the options (:func:`terradyn.models.sph.material`)."""
+    from .. import models
+    from ..models.sph import material
 
-    if density_kg_m3 is not None:
-        if friction_deg is None:
-            raise InputError("friction-deg", "your own medium (--density-kg-m3) needs "
-                                             "--friction-deg (find it: terradyn sph calibrate)")
-        return from_properties(medium, density_kg_m3, friction_deg)
-    return from_medium(medium, friction_deg=friction_deg)
+    return material(medium, models.get("sph").check_options(
+        {"density_kg_m3": density_kg_m3, "friction_deg": friction_deg}))
 
 
 @contextmanager
@@ -273,7 +268,7 @@ def legs_cmd(omega: list[float] = typer.Option([0.2], help="Angular speeds, rad/
              legs: list[str] = typer.Option(["flat", "c", "reverse-c"], "--leg", help="Legs (repeat)."),
              medium: str = _MEDIUM, quick: bool = _QUICK, dx_mm: Optional[float] = _DX,
              n_theta: int = typer.Option(271, help="Output angles."),
-             outdir: Path = typer.Option(Path("results/sph"), help="Directory for series, metrics and figures."),
+             outdir: Path = typer.Option(Path("results/sph"), "--out", "-o", "--outdir", help="Directory for series, metrics and figures."),
              checkpoint_dir: Optional[Path] = typer.Option(None, help="Directory for checkpoints (resume)."),
              backend: Backend = _BACKEND,
              ):
@@ -284,7 +279,7 @@ def legs_cmd(omega: list[float] = typer.Option([0.2], help="Angular speeds, rad/
     from ..sph.solver import check_checkpoint
 
     cfg = _config(quick, dx_mm, 0.2, None, Backend(backend).value)
-    io.check_writable(outdir, "outdir", directory=True)
+    io.check_writable(outdir, "out", directory=True)
     if checkpoint_dir is not None:
         io.check_writable(checkpoint_dir, "checkpoint-dir", directory=True)
     tags = [(name, w, f"{name}_w{w:g}") for name in legs for w in omega]
