@@ -97,7 +97,9 @@ def _resumed(info: dict | None) -> None:
 def _unstable(e) -> None:
     from . import err
 
-    err(f"[bold red]error:[/] {e}")
+    from rich.markup import escape
+
+    err(f"[bold red]error:[/] {escape(str(e))}")
     raise typer.Exit(3)
 
 

@@ -98,7 +98,9 @@ def register(app: typer.Typer) -> None:
         err(f"{summ.store}: {summ.done} run, {summ.skipped} already done, {len(summ.failed)} failed, "
             f"of {summ.total} ({summ.executor}, {summ.wall_s:.1f} s)")
         for cid, e in summ.failed.items():
-            err(f"  [red]failed[/] {cid}: {e}")
+            from rich.markup import escape
+
+            err(f"  [red]failed[/] {cid}: {escape(str(e))}")
         if summ.failed:
             err("rerun the same command to retry the failed cases")
             raise typer.Exit(1)
