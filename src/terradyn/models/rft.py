@@ -41,7 +41,11 @@ def stress_model_of(medium: str, alpha: str = "fit", zeta=None, interp=None, tab
 def _simulate(body, motion, medium, *, alpha="fit", zeta=None, interp=None, table_file=None):
     from ..rft import simulate
 
-    if not isinstance(medium, str):  # a stress model object
+    if not isinstance(medium, str):  # a stress model object: the options do not apply
+        for name, v in (("alpha", alpha if alpha != "fit" else None), ("zeta", zeta), ("interp", interp),
+                        ("table-file", table_file)):
+            if v is not None:
+                ignored(name, "has no effect when the medium is given as a stress model")
         return simulate(body, motion, medium, getattr(medium, "name", None))
     return simulate(body, motion, stress_model_of(medium, alpha, zeta, interp, table_file), medium)
 
