@@ -44,7 +44,7 @@ def test_rft_polyline_and_motion_files(tmp_path, capsys):
     (["--medium", "sand"], "medium"),
     (["--elements", "1"], "elements"),
     (["--length-cm", "0"], "length-cm"),
-    (["--theta-start-deg", "5", "--theta-end-deg", "5"], "theta range"),
+    (["--theta-start-deg", "5", "--theta-end-deg", "5"], "theta-end-deg"),
     (["--omega", "-1"], "omega"),
     (["--curvature", "3"], "curvature"),
     (["--leg-file", "/no/such.csv"], "leg-file"),

@@ -340,7 +340,7 @@ def short_intrusion():
     # quasi-static still: tip speed 0.15 m/s against a sound speed of 29 m/s
     mot = td.Rotation(omega=2.0, hip_height=0.02, theta_start=-90 * DEG, theta_end=-50 * DEG,
                       n_theta=41)
-    ds, res = td.sph.simulate(leg, mot, quick=True, return_run=True)
+    ds, res = td.sph.simulate_run(leg, mot, quick=True)
     rft = td.rft.simulate(leg, mot, td.stress_model("3 mm glass CP"))
     return ds, res, rft
 

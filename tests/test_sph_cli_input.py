@@ -41,7 +41,7 @@ def _one_line_error(capsys, field, *parts):
 @pytest.mark.parametrize("dx", ["0", "-1", "nan", "50"])
 def test_dx_mm_zero_negative_nan_or_too_coarse(cmd, dx, no_work, capsys, tmp_path):
     assert main(["sph", *cmd, "--dx-mm", dx] + (["--outdir", str(tmp_path)] if cmd[0] == "legs" else [])) == 2
-    _one_line_error(capsys, "dx-mm", "(0, 10] mm")
+    _one_line_error(capsys, "dx-mm", "finite" if dx == "nan" else "(0, 10] mm")
 
 
 def test_default_config_treats_zero_dx_as_an_error_not_the_default():
@@ -96,7 +96,7 @@ def test_legs_outdir_and_checkpoint_dir_that_are_files(no_work, capsys, tmp_path
     afile = tmp_path / "afile"
     afile.write_text("mine")
     assert main(["sph", "legs", "--quick", "--outdir", str(afile)]) == 2
-    _one_line_error(capsys, "outdir", "not a directory")
+    _one_line_error(capsys, "out", "not a directory")
     assert main(["sph", "legs", "--quick", "--outdir", str(tmp_path / "o"),
                  "--checkpoint-dir", str(afile)]) == 2
     _one_line_error(capsys, "checkpoint-dir", "not a directory")

@@ -20,7 +20,7 @@ from pathlib import Path
 
 import numpy as np
 
-from .errors import InputError, finite_array, in_range, integer, positive
+from .errors import InputError, open_text, finite_array, in_range, integer, positive
 from .units import CM
 
 
@@ -292,7 +292,7 @@ def read_leg_csv(path: str | Path, width: float = STANDARD_WIDTH, n: int = 100) 
     path = Path(path)
     if not path.is_file():
         raise InputError("leg-file", f"file not found: {path}")
-    with open(path, newline="") as fh:
+    with open_text(path, "leg-file") as fh:
         reader = csv.DictReader(fh)
         cols = reader.fieldnames or []
         if {"x_cm", "z_cm"} <= set(cols):

@@ -16,7 +16,7 @@ FORMATS = (".nc", ".zarr", ".csv")
 
 
 def _fmt(path: Path, field: str = "out", formats: tuple[str, ...] = FORMATS) -> str:
-    suf = path.suffix.lower()
+    suf = Path(path).suffix.lower()
     if suf not in formats:
         raise InputError(field, f"unsupported file type {suf or '(none)'!r} for {path}; use one of {', '.join(formats)}")
     return suf
@@ -42,7 +42,21 @@ def check_writable(path: str | Path, field: str = "out", directory: bool = False
         raise InputError(field, f"cannot create {path}: {anc} is not a directory")
     if not os.access(anc, os.W_OK | os.X_OK):
         raise InputError(field, f"cannot write {path}: directory {anc} is not writable")
+    _probe(anc, path, field)
     return path
+
+
+def _probe(folder: Path, path: Path, field: str) -> None:
+    """Create and remove a file in ``folder``: the one sure test that it takes files
+    (permissions as root, read-only or pseudo file systems)."""
+    import tempfile
+
+    try:
+        fd, name = tempfile.mkstemp(prefix=".terradyn-probe-", dir=folder)
+        os.close(fd)
+        os.unlink(name)
+    except OSError as e:
+        raise InputError(field, f"cannot write {path}: {e.strerror or e} in {folder}") from None
 
 
 def check_output(path: str | Path | None, field: str = "out",
@@ -52,8 +66,60 @@ def check_output(path: str | Path | None, field: str = "out",
     if path is None or str(path) == "-":
         return
     path = Path(path)
+    if path.is_dir() and path.suffix.lower() != ".zarr":
+        raise InputError(field, f"{path} is a directory; give a file name ({', '.join(formats)})")
     suf = _fmt(path, field, formats)
     check_writable(path, field, directory=suf == ".zarr")
+
+
+def check_input(path: str | Path | None, field: str = "file") -> Path | None:
+    """Raise :class:`InputError` on ``field`` unless ``path`` (None passes) is a readable
+    file."""
+    if path is None:
+        return None
+    path = Path(path)
+    if not path.exists():
+        raise InputError(field, f"file not found: {path}")
+    if path.is_dir() and path.suffix.lower() != ".zarr":
+        raise InputError(field, f"{path} is a directory; give a file")
+    if not os.access(path, os.R_OK):
+        raise InputError(field, f"{path} is not readable (permission denied)")
+    return path
+
+
+def tmp_name(path: Path) -> Path:
+    """A temporary name of this process beside ``path`` (same suffix, hidden)."""
+    return path.with_name(f".{path.stem}.{os.getpid()}.tmp{path.suffix}")
+
+
+def atomic_save(path: str | Path, save) -> Path:
+    """Call ``save(tmp)`` for a temporary path beside ``path`` (same suffix) and rename it
+    over ``path``: a crash or a full disk never leaves a half-written file under the final
+    name (the temporary is removed on failure)."""
+    import shutil
+
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    tmp = tmp_name(path)
+    try:
+        try:
+            save(tmp)
+        except OSError as e:  # name the file the user asked for, not the temporary
+            raise type(e)(e.errno, e.strerror or str(e), str(path)) from None
+        if tmp.is_dir():  # a directory store (.zarr): move the old one aside, then swap
+            old = path.with_name(f".{path.name}.{os.getpid()}.old")
+            if path.exists():
+                path.rename(old)
+            tmp.rename(path)
+            shutil.rmtree(old, ignore_errors=True)
+        else:
+            os.replace(tmp, path)
+    finally:
+        if tmp.is_dir():
+            shutil.rmtree(tmp, ignore_errors=True)
+        else:
+            tmp.unlink(missing_ok=True)
+    return path
 
 
 def plot_formats() -> tuple[str, ...]:
@@ -80,44 +146,51 @@ def to_csv_text(ds: xr.Dataset) -> str:
 
 
 def write(ds: xr.Dataset, path: str | Path) -> Path:
-    """Write ``ds`` to ``path`` (.nc, .zarr or .csv), atomically for files: a crash never
-    leaves a half-written file under the final name."""
+    """Write ``ds`` to ``path`` (.nc, .zarr or .csv), atomically: a crash or a full disk
+    never leaves a half-written file under the final name."""
     path = Path(path)
     suf = _fmt(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
     if suf == ".zarr":
-        ds.to_zarr(path, mode="w", consolidated=False)
-        return path
-    tmp = path.with_name(f".{path.name}.tmp")
+        return atomic_save(path, lambda t: ds.to_zarr(t, mode="w", consolidated=False))
     if suf == ".nc":
-        ds.to_netcdf(tmp, engine="h5netcdf")
-    else:
-        tmp.write_text(to_csv_text(ds))
-    tmp.replace(path)
-    return path
+        return atomic_save(path, lambda t: ds.to_netcdf(t, engine="h5netcdf"))
+    return atomic_write_text(path, to_csv_text(ds))
 
 
-def read(path: str | Path) -> xr.Dataset:
+def write_netcdf(ds: xr.Dataset, path: str | Path) -> Path:
+    """Any Dataset (not only a force series) to NetCDF, atomically."""
+    return atomic_save(path, lambda t: ds.to_netcdf(t, engine="h5netcdf"))
+
+
+def read(path: str | Path, field: str = "file") -> xr.Dataset:
     """Read a force series written by :func:`write` (.nc, .zarr, or .csv with a theta_deg or
-    time_s column and Fx_N, Fz_N)."""
+    time_s column and Fx_N, Fz_N); a file that is not one is an :class:`InputError` on
+    ``field``."""
     path = Path(path)
-    suf = _fmt(path)
-    if not path.exists():
-        raise InputError("file", f"not found: {path}")
-    if suf == ".nc":
-        with xr.open_dataset(path, engine="h5netcdf") as f:
-            return f.load()
-    if suf == ".zarr":
-        return xr.open_zarr(path, consolidated=False).load()
-    return read_csv(path)
+    suf = _fmt(path, field)
+    check_input(path, field)
+    try:
+        if suf == ".nc":
+            with xr.open_dataset(path, engine="h5netcdf") as f:
+                return f.load()
+        if suf == ".zarr":
+            return xr.open_zarr(path, consolidated=False).load()
+    except (OSError, ValueError, KeyError) as e:
+        raise InputError(field, f"{path}: not a readable {suf[1:]} dataset ({e})") from None
+    try:
+        return read_csv(path)
+    except InputError as e:
+        if e.field == "file" and field != "file":
+            raise InputError(field, str(e).split(": ", 1)[-1]) from None
+        raise
 
 
 def read_csv(path: Path) -> xr.Dataset:
     import pandas as pd
 
     try:
-        df = pd.read_csv(path)
-    except Exception as e:  # pandas raises many kinds
+        df = pd.read_csv(path, encoding="utf-8")
+    except Exception as e:  # pandas raises many kinds (UnicodeDecodeError for a binary file)
         raise InputError("file", f"{path}: not a readable CSV ({e})") from None
     coord = "theta" if "theta_deg" in df else "time" if "time_s" in df else None
     if coord is None or not {"Fx_N", "Fz_N"} <= set(df.columns):
@@ -143,15 +216,12 @@ def emit(ds: xr.Dataset, out: str | None) -> None:
 
 
 def atomic_write_text(path: str | Path, text: str) -> Path:
-    """Write ``text`` to ``path`` through a temporary file of this process, renamed over it."""
-    import os
+    """Write ``text`` to ``path`` through a temporary file of this process, flushed to disk
+    and renamed over it."""
+    def save(tmp):
+        with open(tmp, "w") as fh:
+            fh.write(text)
+            fh.flush()
+            os.fsync(fh.fileno())
 
-    p = Path(path)
-    p.parent.mkdir(parents=True, exist_ok=True)
-    tmp = p.with_name(f".{p.name}.{os.getpid()}.tmp")
-    try:
-        tmp.write_text(text)
-        tmp.replace(p)
-    finally:
-        tmp.unlink(missing_ok=True)
-    return p
+    return atomic_save(path, save)

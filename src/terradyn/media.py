@@ -31,7 +31,7 @@ from typing import Protocol
 
 import numpy as np
 
-from .errors import InputError, choice, finite_array, positive
+from .errors import InputError, open_text, choice, finite_array, positive
 from .units import N_PER_CM3
 
 LI2013 = ("C. Li, T. Zhang, D. I. Goldman, A terradynamics of legged locomotion on granular media, "
@@ -246,9 +246,14 @@ def read_tables(path: str | Path, method: str = "linear") -> dict[str, StressTab
     alpha_z_N_per_cm3, alpha_x_N_per_cm3); one :class:`StressTable` per medium."""
     path = Path(path)
     if not path.is_file():
-        raise InputError("alpha table", f"file not found: {path}")
-    with open(path, newline="") as fh:
-        return _parse_tables(fh, str(path), method)
+        raise InputError("table-file", f"file not found: {path}")
+    with open_text(path, "table-file") as fh:
+        try:
+            return _parse_tables(fh, str(path), method)
+        except InputError as e:
+            if e.field != str(path):
+                raise
+            raise InputError("table-file", str(e)) from None
 
 
 def _parse_tables(fh, source: str, method: str) -> dict[str, StressTable]:

@@ -19,7 +19,7 @@ from pathlib import Path
 
 import numpy as np
 
-from .errors import InputError, finite, finite_array, integer, positive
+from .errors import InputError, open_text, finite, finite_array, integer, positive
 from .units import CM, DEG
 
 
@@ -177,7 +177,7 @@ def read_motion_csv(path: str | Path) -> PlanarMotion:
     if not path.is_file():
         raise InputError("motion-file", f"file not found: {path}")
     need = ("time_s", "hip_x_cm", "hip_z_cm", "angle_deg")
-    with open(path, newline="") as fh:
+    with open_text(path, "motion-file") as fh:
         reader = csv.DictReader(fh)
         missing = [c for c in need if c not in (reader.fieldnames or [])]
         if missing:

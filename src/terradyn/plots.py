@@ -5,8 +5,6 @@ Every function returns the :class:`matplotlib.figure.Figure` and, given ``path``
 """
 from __future__ import annotations
 
-from pathlib import Path
-
 import matplotlib
 
 matplotlib.use("Agg", force=False)
@@ -14,7 +12,7 @@ import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 import xarray as xr  # noqa: E402
 
-from .series import coord_of  # noqa: E402
+from .series import components as schema_components, coord_of  # noqa: E402
 
 STYLE = {
     "font.size": 9, "axes.labelsize": 9, "axes.titlesize": 9, "legend.fontsize": 8,
@@ -23,16 +21,19 @@ STYLE = {
 }
 LEG_COLORS = {"c": "#1b6ca8", "flat": "#d1495b", "reverse-c": "#2a9d8f", "foot": "#6a4c93"}
 AXIS_LABEL = {"theta": r"leg angle $\theta$ (deg)", "time": "time (s)"}
-FORCE_LABEL = {"Fz": r"lift $F_z$ (N)", "Fx": r"thrust $F_x$ (N)", "torque": r"torque (N m)"}
+FORCE_LABEL = {"Fz": r"lift $F_z$ (N)", "Fx": r"thrust $F_x$ (N)", "Fy": r"lateral force $F_y$ (N)",
+               "torque": r"torque (N m)", "Tx": r"torque $T_x$ (N m)", "Ty": r"torque $T_y$ (N m)",
+               "Tz": r"torque $T_z$ (N m)"}
 
 
 def _save(fig, path, tight: bool = False):
     """Save at 200 dpi; ``tight`` crops to the drawn artists (for figures whose fixed aspect
     ratio keeps the layout engine from fitting the labels)."""
     if path is not None:
-        path = Path(path)
-        path.parent.mkdir(parents=True, exist_ok=True)
-        fig.savefig(path, dpi=200, **({"bbox_inches": "tight", "pad_inches": 0.04} if tight else {}))
+        from .io import atomic_save
+
+        kw = {"bbox_inches": "tight", "pad_inches": 0.04} if tight else {}
+        atomic_save(path, lambda t: fig.savefig(t, dpi=200, **kw))
     return fig
 
 
@@ -47,10 +48,14 @@ def _shade_phases(ax, coord):
                 fontsize=7, color="0.4")
 
 
-def forces(series: dict[str, xr.Dataset], path=None, components=("Fz", "Fx"), title: str = "",
+def forces(series: dict[str, xr.Dataset], path=None, components=None, title: str = "",
            styles: dict[str, dict] | None = None):
     """Force components against the motion coordinate for several labelled series; bands
-    where a series carries ``<component>_std`` (mean +- 2 std)."""
+    where a series carries ``<component>_std`` (mean +- 2 std). ``components``: default the
+    force components of the first series' schema, lift first (2D: Fz, Fx; 3D: Fz, Fx, Fy)."""
+    if components is None:
+        comps = schema_components(next(iter(series.values())))
+        components = ("Fz",) + tuple(c for c in comps if c != "Fz")
     with plt.rc_context(STYLE):
         fig, axes = plt.subplots(1, len(components), figsize=(3.4 * len(components), 2.8), squeeze=False)
         coord = coord_of(next(iter(series.values())))

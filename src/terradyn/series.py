@@ -12,6 +12,24 @@ A force series is an :class:`xarray.Dataset` with
   (JSON of the full input) so that a series says what made it.
 
 Stacks of series along a ``case`` dimension are what sweeps write and surrogates train on.
+
+Schemas
+-------
+A series declares its components through its schema (attribute ``schema``; a series
+without one is ``"2d"``). Code that loops over force or torque components (compare,
+surrogate, filter, plots) asks the schema, so a 3D model is an addition, not an edit::
+
+    SCHEMAS["2d"]: forces ("Fx", "Fz"),        torques ("torque",)     planar: x forward, z up
+    SCHEMAS["3d"]: forces ("Fx", "Fy", "Fz"),  torques ("Tx", "Ty", "Tz")  y to the left
+
+3D models build their series with :func:`make_series` (schema "3d")::
+
+    make_series("time", t, {"Fx": fx, "Fy": fy, "Fz": fz, "Tx": tx, "Ty": ty, "Tz": tz},
+                schema="3d", model="rft3d", inputs={...})
+
+and read them back with :func:`schema_of` / :func:`components`. Every force component is
+required; torque components are optional (all or none). ``<component>_std`` variables
+(the same units) are the uncertainty of a prediction.
 """
 from __future__ import annotations
 
@@ -24,13 +42,53 @@ import xarray as xr
 
 from .errors import InputError
 
+from dataclasses import dataclass
+
 COORDS = ("theta", "time")
-UNITS = {"theta": "deg", "time": "s", "Fx": "N", "Fz": "N", "torque": "N m",
-         "Fx_std": "N", "Fz_std": "N"}
+
+
+@dataclass(frozen=True)
+class Schema:
+    """The components a force series carries: ``forces`` (N, required) and ``torques``
+    (N m, optional: all or none)."""
+
+    name: str
+    forces: tuple[str, ...]
+    torques: tuple[str, ...]
+
+    @property
+    def components(self) -> tuple[str, ...]:
+        return self.forces + self.torques
+
+
+SCHEMAS = {
+    "2d": Schema("2d", ("Fx", "Fz"), ("torque",)),
+    "3d": Schema("3d", ("Fx", "Fy", "Fz"), ("Tx", "Ty", "Tz")),
+}
+UNITS = {"theta": "deg", "time": "s", "Fx": "N", "Fy": "N", "Fz": "N", "torque": "N m",
+         "Tx": "N m", "Ty": "N m", "Tz": "N m"}
+UNITS.update({f"{k}_std": u for k, u in list(UNITS.items()) if k not in COORDS})
 LONG_NAMES = {"theta": "leg angle from the downward vertical", "time": "time",
               "Fx": "horizontal force (+ forward / thrust)", "Fz": "vertical force (+ up / lift)",
+              "Fy": "lateral force (+ left)",
               "torque": "torque about the hip (+ anticlockwise)",
-              "Fx_std": "standard deviation of Fx", "Fz_std": "standard deviation of Fz"}
+              "Tx": "torque about x (roll)", "Ty": "torque about y (pitch)", "Tz": "torque about z (yaw)"}
+LONG_NAMES.update({f"{k}_std": f"standard deviation of {k}" for k in list(LONG_NAMES) if k not in COORDS})
+
+
+def schema_of(ds: xr.Dataset) -> Schema:
+    """The schema of a series (attribute ``schema``; "2d" when absent, "3d" when it has Fy)."""
+    name = ds.attrs.get("schema") or ("3d" if "Fy" in ds else "2d")
+    if name not in SCHEMAS:
+        raise InputError("force series", f"unknown schema {name!r}; known: {', '.join(SCHEMAS)}")
+    return SCHEMAS[name]
+
+
+def components(ds: xr.Dataset, torques: bool = False) -> tuple[str, ...]:
+    """The force components of ``ds`` (and, with ``torques``, its torque components that
+    are present), in schema order."""
+    sc = schema_of(ds)
+    return sc.forces + (tuple(t for t in sc.torques if t in ds) if torques else ())
 
 
 def _version() -> str:
@@ -41,14 +99,30 @@ def _version() -> str:
 
 def force_series(coord: str, values, Fx, Fz, torque=None, *, model: str, inputs: dict[str, Any],
                  time=None, extra: dict[str, Any] | None = None) -> xr.Dataset:
-    """Build a force series. ``values``: (S,) coordinate values (deg for theta, s for time);
-    Fx, Fz, torque: (S,) N / N m; ``inputs``: JSON-serialisable description of the full input;
-    ``extra``: more data variables (name -> (S,) array) with units in ``UNITS``."""
+    """Build a 2D force series. ``values``: (S,) coordinate values (deg for theta, s for
+    time); Fx, Fz, torque: (S,) N / N m; ``inputs``: JSON-serialisable description of the
+    full input; ``extra``: more data variables (name -> (S,) array) with units in ``UNITS``."""
+    comps = {"Fx": Fx, "Fz": Fz}
+    if torque is not None:
+        comps["torque"] = torque
+    return make_series(coord, values, comps, schema="2d", model=model, inputs=inputs, time=time,
+                       extra=extra)
+
+
+def make_series(coord: str, values, data: dict[str, Any], *, schema: str = "2d", model: str,
+                inputs: dict[str, Any], time=None, extra: dict[str, Any] | None = None) -> xr.Dataset:
+    """Build a force series of any schema: ``data`` maps each of the schema's force
+    components (and optionally all its torque components) to (S,) values."""
     if coord not in COORDS:
         raise InputError("coord", f"must be one of {COORDS}, got {coord!r}")
-    data = {"Fx": (coord, np.asarray(Fx, float)), "Fz": (coord, np.asarray(Fz, float))}
-    if torque is not None:
-        data["torque"] = (coord, np.asarray(torque, float))
+    if schema not in SCHEMAS:
+        raise InputError("schema", f"unknown schema {schema!r}; known: {', '.join(SCHEMAS)}")
+    sc = SCHEMAS[schema]
+    unknown = set(data) - set(sc.components)
+    if unknown:
+        raise InputError("force series", f"{sorted(unknown)} are not components of schema {schema!r} "
+                                         f"({', '.join(sc.components)})")
+    data = {k: (coord, np.asarray(data[k], float)) for k in sc.components if k in data}
     for k, v in (extra or {}).items():
         data[k] = (coord, np.asarray(v, float))
     coords = {coord: np.asarray(values, float)}
@@ -67,6 +141,8 @@ def force_series(coord: str, values, Fx, Fz, torque=None, *, model: str, inputs:
         input=json.dumps(inputs, sort_keys=True, default=_json_default),
         Conventions="CF-1.10",
     )
+    if schema != "2d":
+        ds.attrs["schema"] = schema
     validate(ds)
     return ds
 
@@ -97,7 +173,11 @@ def validate(ds: xr.Dataset) -> xr.Dataset:
     if not isinstance(ds, xr.Dataset):
         raise InputError("force series", f"must be an xarray.Dataset, got {type(ds).__name__}")
     c = coord_of(ds)
-    for v in ("Fx", "Fz"):
+    sc = schema_of(ds)
+    present = [t for t in sc.torques if t in ds]
+    if present and len(present) != len(sc.torques):
+        raise InputError("force series", f"has {present} but not all torque components {list(sc.torques)}")
+    for v in sc.forces:
         if v not in ds:
             raise InputError("force series", f"missing variable {v!r}")
         if c not in ds[v].dims:

@@ -14,11 +14,11 @@ import numpy as np
 import pandas as pd
 import xarray as xr
 
-from . import io, plots
+from . import io, models, plots
 from .geometry import foot, make_leg
 from .media import FITS, INTERPOLATOR_NAMES, generic, packaged_tables, stress_model
 from .motion import Trajectory, foot_rotation, standard_rotation
-from .rft import element_forces, simulate
+from .rft import element_forces
 from .rft.analysis import calibrate_zeta, curve_at, features, interpolator_holdout
 from .series import stack
 from .units import CM, DEG
@@ -33,7 +33,7 @@ def _out(out) -> Path:
 
 
 def _write_json(path: Path, obj) -> None:
-    path.write_text(json.dumps(obj, indent=2, sort_keys=True) + "\n")
+    io.atomic_write_text(path, json.dumps(obj, indent=2, sort_keys=True) + "\n")
 
 
 def interp_study(out, map_medium: str = "3 mm glass CP") -> dict:
@@ -56,12 +56,14 @@ def interp_study(out, map_medium: str = "3 mm glass CP") -> dict:
 
 
 def legs_study(out, medium: str = "3 mm glass CP", alpha: str = "table", interp: str = "linear",
-               zeta: float | None = None, n_theta: int = 271, n_elements: int = 100) -> dict:
-    """The three legs of the standard rotating-leg test, each alone and together."""
+               zeta: float | None = None, n_theta: int = 271, n_elements: int = 100,
+               model: str = "rft") -> dict:
+    """The three legs of the standard rotating-leg test, each alone and together (``model``:
+    a registered model, :mod:`terradyn.models`)."""
     out = _out(out)
-    model = stress_model(medium, alpha, zeta, interp)
+    opts = {"alpha": alpha, "zeta": zeta, "interp": interp if alpha == "table" else None}
     rot = standard_rotation(n_theta)
-    series = {leg: simulate(make_leg(leg, n=n_elements), rot, model, medium) for leg in LEGS}
+    series = {leg: models.simulate(model, make_leg(leg, n=n_elements), rot, medium, **opts) for leg in LEGS}
     for leg, ds in series.items():
         io.write(ds, out / f"rft_{leg}.nc")
         plots.forces({leg: ds}, out / f"rft_{leg}.png", title=f"RFT, {leg} leg, {medium} ({alpha})")
@@ -104,12 +106,12 @@ def frames_study(out, medium: str = "3 mm glass CP", alpha: str = "table",
 
 
 def foot_study(out, lengths_cm=tuple(range(25, 34)), medium: str = "poppy LP", alpha: str = "fit",
-               max_deg: float = 3.0, n_theta: int = 61, width_cm: float = 8.5) -> dict:
+               max_deg: float = 3.0, n_theta: int = 61, width_cm: float = 8.5, model: str = "rft") -> dict:
     """Human-sized foot (thesis 2.4): forces against rotation for lengths 25-33 cm."""
     out = _out(out)
-    model = stress_model(medium, alpha)
     rot = foot_rotation(max_deg, n_theta)
-    series = [simulate(foot(L * CM, width_cm * CM), rot, model, medium) for L in lengths_cm]
+    series = [models.simulate(model, foot(L * CM, width_cm * CM), rot, medium, alpha=alpha)
+              for L in lengths_cm]
     ds = stack(series, {"length_cm": np.asarray(lengths_cm, float)})
     io.write(ds, out / "rft_foot.nc")
     plots.foot_forces(ds, out / "rft_foot.png", title=f"RFT foot ({width_cm:g} cm wide) in {medium}")

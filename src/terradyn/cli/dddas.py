@@ -9,6 +9,9 @@ from typing import List, Optional
 
 import typer
 
+from ..errors import renamed
+from . import sub_app
+
 Method = Enum("Method", {"pf": "pf", "exact": "exact"}, type=str)
 Resampler = Enum("Resampler", {"systematic": "systematic", "multinomial": "multinomial"}, type=str)
 Study = Enum("Study", {"legs": "legs", "foot": "foot"}, type=str)
@@ -28,6 +31,8 @@ def _conditions(at: List[str]) -> dict:
         if "=" not in a:
             raise InputError("at", f"expected NAME=VALUE, got {a!r}")
         k, v = a.split("=", 1)
+        if not k.strip():
+            raise InputError("at", f"expected NAME=VALUE, got {a!r} (no name)")
         try:
             out[k.strip()] = float(v)
         except ValueError:
@@ -45,7 +50,7 @@ def _estimator(inputs, energy, step_energy, center, restarts, seed):
 
 
 def register(app: typer.Typer) -> None:
-    dd = typer.Typer(help="DDDAS: surrogate (HOSVD + Gaussian processes) and online assimilation.",
+    dd = sub_app(help="DDDAS: surrogate (HOSVD + Gaussian processes) and online assimilation.",
                      no_args_is_help=True)
     app.add_typer(dd, name="dddas")
 
@@ -64,7 +69,10 @@ def register(app: typer.Typer) -> None:
         """Fit the surrogate to a stack of force series and save it (NetCDF, no pickle)."""
         from .. import io
 
-        sur = _estimator(inputs, energy, step_energy, center, restarts, seed).fit(io.read(data))
+        io.check_input(data, "data")
+        io.check_output(out, "out", (".nc",))
+        io.check_plot(plot)
+        sur = _estimator(inputs, energy, step_energy, center, restarts, seed).fit(io.read(data, "data"))
         sur.save(out)
         if plot:
             from ..dddas import plots
@@ -89,15 +97,19 @@ def register(app: typer.Typer) -> None:
         from .. import io
         from ..dddas.crossval import cross_validate, mse_table
 
-        ds = io.read(data)
+        io.check_input(data, "data")
+        io.check_input(baseline, "baseline")
+        io.check_output(out, "out", (".csv", ".nc"))
+        io.check_plot(plot)
+        ds = io.read(data, "data")
         res = cross_validate(ds, _estimator(inputs, energy, step_energy, center, restarts, seed),
-                             io.read(baseline) if baseline else None,
+                             io.read(baseline, "baseline") if baseline else None,
                              progress=lambda i, n: _err(f"fold {i}/{n}"))
-        if out and out.endswith(".nc"):
-            res.to_netcdf(out, engine="h5netcdf")
+        if out and out.lower().endswith(".nc"):
+            io.write_netcdf(res, out)
         else:
             text = mse_table(res).to_csv(index=False, float_format="%.6g")
-            Path(out).write_text(text) if out and out != "-" else sys.stdout.write(text)
+            io.atomic_write_text(out, text) if out and out != "-" else sys.stdout.write(text)
         if plot:
             from ..dddas import plots
 
@@ -115,8 +127,13 @@ def register(app: typer.Typer) -> None:
         from .. import io
         from ..dddas import Surrogate
 
-        sur = Surrogate.load(model)
-        pred = sur.predict(_conditions(at))
+        io.check_input(model, "model")
+        io.check_output(out, "out")
+        io.check_plot(plot)
+        cond = _conditions(at)
+        with renamed(**{"model file": "model"}):
+            sur = Surrogate.load(model)
+        pred = sur.predict(cond)
         io.emit(pred, out)
         if plot:
             from ..dddas import plots
@@ -142,25 +159,51 @@ def register(app: typer.Typer) -> None:
         """Correct the surrogate's prediction with noisy force samples (file or stream)."""
         from .. import io
         from ..dddas import Surrogate
-        from ..dddas.online import Assimilation, read_observations, stream_csv
+        from ..dddas.online import Assimilation, assimilate as assimilate_file, read_observations, stream_csv
+        from ..errors import check_memory, in_range, integer, non_negative, positive
 
-        sur = Surrogate.load(model)
+        io.check_input(model, "model")
+        if obs != "-":
+            io.check_input(obs, "obs")
+        io.check_output(out, "out")
+        io.check_plot(plot)
+        positive("obs-std-N", obs_std_n, "N")
+        non_negative("prior-floor", prior_floor)
+        non_negative("jitter-floor", jitter_floor)
+        if method.value == "pf":
+            integer("particles", particles, 1)
+            in_range("jitter", jitter, 0.0, 1.0)
+            if jitter >= 1.0:
+                from ..errors import InputError
+
+                raise InputError("jitter", f"must be in [0, 1), got {jitter!r}")
+            check_memory("particles", particles * 8.0 * 64 * 4, f"{particles:,} particles")
+        else:
+            from ..models import ignored
+
+            for name, v, d in (("particles", particles, 5000), ("jitter", jitter, 0.1),
+                               ("jitter-floor", jitter_floor, 0.0), ("resample", resample, Resampler.systematic)):
+                if v != d:
+                    ignored(name, "has no effect with --method exact")
+        cond = _conditions(at)
+        with renamed(**{"model file": "model"}):
+            sur = Surrogate.load(model)
+        sur.warn_extrapolation(cond)
         opts = dict(n_particles=particles, resample=resample.value, jitter=jitter, jitter_floor=jitter_floor,
                     rng=seed) if method.value == "pf" else {}
-        a = Assimilation(sur, _conditions(at), obs_std_n, method.value, prior_floor=prior_floor, **opts)
-        prior = a.prediction()
         observations = None
         if obs == "-":
+            a = Assimilation(sur, cond, obs_std_n, method.value, prior_floor=prior_floor, **opts)
+            prior = a.prediction()
             n = stream_csv(a, sys.stdin, every=100, report=lambda i, e: _err(f"{i} samples, ESS {e:.0f}"))
+            post = a.prediction()
         else:
-            from ..dddas.online import observations_arrays
-
             observations = read_observations(obs)
-            v, comps = observations_arrays(observations, sur.coord_)
-            for i in range(len(v)):
-                a.update(v[i], *(float(comps[c][i]) if c in comps else None for c in ("Fx", "Fz")))
-            n = len(v)
-        post = a.prediction()
+            prior = Assimilation(sur, cond, obs_std_n, method.value, prior_floor=prior_floor,
+                                 **opts).prediction() if plot else None
+            post = assimilate_file(sur, cond, observations, obs_std_n, method.value,
+                                   prior_floor=prior_floor, **opts)
+            n = post.attrs["samples_assimilated"]
         io.emit(post, out)
         if plot:
             from ..dddas import plots
@@ -191,15 +234,38 @@ def register(app: typer.Typer) -> None:
         seed: int = typer.Option(0, help="Random seed."),
     ):
         """Run a DDDAS study: datasets, figures and summary.json in --out."""
+        from .. import io
         from ..dddas import studies
-        from ..errors import InputError
+        from ..errors import check_memory, integer
+        from ..models import ignored
 
+        io.check_writable(out, "out", directory=True)
+        integer("particles", particles, 1)
+        check_memory("particles", particles * 8.0 * 64 * 4, f"{particles:,} particles")
+        if which.value == "legs" and trial is not None:
+            ignored("trial", "has no effect with the legs study")
+        if which.value == "foot" and data:
+            ignored("data", "has no effect with the foot study")
+        io.check_input(trial, "trial")
+        if trial is not None and which.value == "foot":
+            from ..experiment import read_trial
+
+            read_trial(trial)  # a bad trial: an error before the study's work
         if which.value == "legs":
+            from ..errors import InputError
+
             d = {}
             for item in data:
                 k, v = item.split("=", 1) if "=" in item else ("all", item)
+                if k != "all" and k not in studies.LEGS:
+                    raise InputError("data", f"{item!r}: unknown leg {k!r}; allowed: {', '.join(studies.LEGS)}")
+                if v not in ("sph", "rft"):
+                    if Path(v).suffix.lower() not in (".nc", ".zarr", ".csv"):
+                        raise InputError("data", f"{item!r}: not 'sph', 'rft' or a .nc/.zarr/.csv file")
+                    io.check_input(v, "data")
                 d[k] = v
-            s = studies.legs_study(out, d, particles=particles, seed=seed, progress=_err)
+            with renamed(file="data"):
+                s = studies.legs_study(out, d, particles=particles, seed=seed, progress=_err)
             _legs_summary(s)
         else:
             s = studies.foot_study(out, trial=trial, particles=particles, seed=seed, progress=_err)

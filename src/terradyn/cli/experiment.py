@@ -8,6 +8,9 @@ from typing import List, Optional
 
 import typer
 
+from ..errors import non_negative, positive, renamed
+from . import options as O, sub_app
+
 
 def _pairs(items: List[str], field: str) -> dict:
     from ..errors import InputError
@@ -24,37 +27,43 @@ def _pairs(items: List[str], field: str) -> dict:
 def _read(path: Path, column: List[str], unit: List[str]):
     from ..experiment import read_trial
 
-    return read_trial(path, _pairs(column, "column"), _pairs(unit, "unit"))
+    with renamed(columns="column", units="unit"):
+        return read_trial(path, _pairs(column, "column"), _pairs(unit, "unit"))
 
 
 _COL = "Column name VAR=NAME (VAR: time, angle_cmd, angle, speed_cmd, speed, torque, normal_force)."
 _UNIT = "Unit VAR=UNIT (time ms|s|us; angles deg|rad; speeds deg/s|rad/s; torque 'N m'|'N mm'|'N cm'; force N|kN|lbf|kgf)."
 
 
+def _outputs(out, plot=None, formats=(".csv",)):
+    from .. import io
+
+    io.check_output(out, "out", formats)
+    io.check_plot(plot)
+
+
 def register(app: typer.Typer) -> None:
-    ex = typer.Typer(help="Experimental trials: filter, compare with RFT, calibrate, synthesize.",
-                     no_args_is_help=True)
+    ex = sub_app(help="Experimental trials: filter, compare with RFT, calibrate, synthesize.")
     app.add_typer(ex, name="experiment")
 
     @ex.command("filter")
     def filter_(
         trial: Path = typer.Argument(..., help="Trial CSV (defaults: time_ms, angle_cmd_deg, angle_deg, speed_cmd_deg_s, speed_deg_s, torque_Nm, normal_force_N)."),
-        cutoff_hz: float = typer.Option(10.0, "--cutoff-hz", help="Low-pass cut-off, Hz."),
-        order: int = typer.Option(4, help="Butterworth order (applied forward and backward)."),
+        cutoff_hz: float = typer.Option(10.0, "--cutoff-hz", help="Low-pass cut-off, Hz (below the Nyquist frequency)."),
+        order: int = typer.Option(4, help="Butterworth order, 1-12 (applied forward and backward)."),
         column: List[str] = typer.Option([], "--column", help=_COL),
         unit: List[str] = typer.Option([], "--unit", help=_UNIT),
-        out: Optional[Path] = typer.Option(None, "--out", "-o", help="Filtered trial CSV [default: stdout]."),
+        out: Optional[Path] = O.out("Filtered trial CSV", "stdout"),
     ):
         """Zero-phase Butterworth low-pass of torque and normal force."""
-        from ..experiment import lowpass, write_trial
+        from ..experiment import lowpass, trial_csv_text, write_trial
 
-        f = lowpass(_read(trial, column, unit), cutoff_hz, order)
-        if out is None:
-            import tempfile
-
-            with tempfile.TemporaryDirectory() as d:
-                p = write_trial(f, Path(d) / "t.csv")
-                sys.stdout.write(p.read_text())
+        _outputs(out)
+        positive("cutoff-hz", cutoff_hz, "Hz")
+        with renamed(variables="column"):
+            f = lowpass(_read(trial, column, unit), cutoff_hz, order)
+        if out is None or str(out) == "-":
+            sys.stdout.write(trial_csv_text(f))
         else:
             write_trial(f, out)
 
@@ -62,28 +71,34 @@ def register(app: typer.Typer) -> None:
     def compare(
         trial: Path = typer.Argument(..., help="Trial CSV."),
         length_cm: float = typer.Option(27.0, "--length-cm", help="Nominal foot length, cm."),
-        zeta: Optional[float] = typer.Option(None, help="Scaling factor of the generic fit [default: the medium's]."),
+        zeta: Optional[float] = typer.Option(None, help="Scaling factor of the generic fit (default: the medium's)."),
         medium: str = typer.Option("poppy LP", help="Medium (for the default zeta)."),
         offset_n: float = typer.Option(0.0, "--offset-N", help="Offset added to the model normal force, N."),
         cutoff_hz: float = typer.Option(10.0, "--cutoff-hz", help="Low-pass cut-off, Hz."),
         order: int = typer.Option(4, help="Butterworth order."),
         column: List[str] = typer.Option([], "--column", help=_COL),
         unit: List[str] = typer.Option([], "--unit", help=_UNIT),
-        out: Optional[Path] = typer.Option(None, "--out", "-o", help="Comparison dataset (.nc) [default: none]."),
+        out: Optional[Path] = O.out("Comparison dataset (.nc)", "none"),
         plot: Optional[Path] = typer.Option(None, help="Figure: raw, filtered and model (.png)."),
     ):
         """Compare a trial with the RFT foot model at the trial's actual angles."""
+        from .. import io
         from ..experiment import compare as cmp_
         from ..units import CM
 
+        _outputs(out, plot, (".nc",))
+        positive("length-cm", length_cm, "cm")
+        positive("cutoff-hz", cutoff_hz, "Hz")
+        if zeta is not None:
+            positive("zeta", zeta)
         c = cmp_(_read(trial, column, unit), length_cm * CM, zeta, medium, offset_n, cutoff_hz, order)
         if out:
-            c.to_netcdf(out, engine="h5netcdf")
+            io.write_netcdf(c, out)
         if plot:
             from ..dddas import plots
 
             plots.trial_comparison(c, plot, f"{trial.name} vs RFT foot {length_cm:g} cm")
-        sys.stdout.write(json.dumps({k: v for k, v in c.attrs.items()}, indent=2) + "\n")
+        sys.stdout.write(json.dumps({k: v for k, v in c.attrs.items()}, indent=2, allow_nan=False) + "\n")
 
     @ex.command()
     def calibrate(
@@ -91,7 +106,7 @@ def register(app: typer.Typer) -> None:
         fit: List[str] = typer.Option(["length", "offset"], "--fit", help="Parameters to fit: length, zeta, offset."),
         use: List[str] = typer.Option(["normal_force"], "--use", help="Channels: normal_force, torque."),
         length_cm: float = typer.Option(25.0, "--length-cm", help="Initial / fixed nominal length, cm."),
-        zeta: Optional[float] = typer.Option(None, help="Initial / fixed zeta [default: the medium's]."),
+        zeta: Optional[float] = typer.Option(None, help="Initial / fixed zeta (default: the medium's)."),
         offset_n: float = typer.Option(0.0, "--offset-N", help="Initial / fixed offset, N."),
         medium: str = typer.Option("poppy LP", help="Medium (for the default zeta)."),
         column: List[str] = typer.Option([], "--column", help=_COL),
@@ -101,10 +116,14 @@ def register(app: typer.Typer) -> None:
         from ..experiment import calibrate as cal
         from ..units import CM
 
+        positive("length-cm", length_cm, "cm")
+        if zeta is not None:
+            positive("zeta", zeta)
         init = {"length": length_cm * CM, "offset": offset_n}
         if zeta is not None:
             init["zeta"] = zeta
-        r = cal(_read(trial, column, unit), fit, use, init, medium)
+        with renamed(params="fit", use="use", initial="length-cm"):
+            r = cal(_read(trial, column, unit), fit, use, init, medium)
         r["values"]["length_cm"] = r["values"]["length"] / CM
         if "length" in r["std"]:
             r["std"]["length_cm"] = r["std"]["length"] / CM
@@ -114,7 +133,7 @@ def register(app: typer.Typer) -> None:
     def synth(
         out: Path = typer.Option(..., "--out", "-o", help="Trial CSV to write (labelled SYNTHETIC)."),
         commanded_deg: float = typer.Option(3.0, "--commanded-deg", help="Commanded angle, deg."),
-        reached_deg: Optional[float] = typer.Option(None, "--reached-deg", help="Angle reached [default: thesis 3/7/12 -> 0.84/1.7/2.6 deg]."),
+        reached_deg: Optional[float] = typer.Option(None, "--reached-deg", help="Angle reached (default: thesis 3/7/12 -> 0.84/1.7/2.6 deg)."),
         length_cm: float = typer.Option(27.0, "--length-cm", help="Nominal foot length of the model, cm."),
         medium: str = typer.Option("poppy LP", help="Medium."),
         offset_n: float = typer.Option(-0.5, "--offset-N", help="Sensor bias, N."),
@@ -128,8 +147,14 @@ def register(app: typer.Typer) -> None:
         from ..experiment import synthetic_trial, write_trial
         from ..units import CM
 
-        t = synthetic_trial(commanded_deg, reached_deg, length_cm * CM, None, medium, offset_n, lag_s,
-                            noise_n, rate=rate_hz, duration=duration_s, seed=seed)
+        _outputs(out)
+        positive("length-cm", length_cm, "cm")
+        non_negative("noise-N", noise_n, "N")
+        non_negative("lag-s", lag_s, "s")
+        with renamed(commanded="commanded-deg", reached="reached-deg", rate="rate-hz",
+                     duration="duration-s", lag="lag-s", noise="noise-N", seed="seed"):
+            t = synthetic_trial(commanded_deg, reached_deg, length_cm * CM, None, medium, offset_n, lag_s,
+                                noise_n, rate=rate_hz, duration=duration_s, seed=seed)
         write_trial(t, out)
         from . import err
 

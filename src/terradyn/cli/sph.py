@@ -9,18 +9,17 @@ from typing import Optional
 
 import typer
 
-from ..errors import InputError, integer, positive
-from ..geometry import LEG_SHAPES
+from . import options as O, sub_app
 
-Leg = Enum("Leg", {s: s for s in LEG_SHAPES}, type=str)
+from ..errors import InputError, integer, positive
+
 Backend = Enum("Backend", {b: b for b in ("cpu", "gpu", "auto")}, type=str)
 
-sph_app = typer.Typer(help="SPH (Drucker-Prager granular bed) forces and validation scenes.",
+sph_app = sub_app(help="SPH (Drucker-Prager granular bed) forces and validation scenes.",
                       no_args_is_help=True)
 
 _QUICK = typer.Option(False, "--quick", help="Coarse resolution (4 mm particles) for tests and previews.")
-#: Largest particle spacing the commands accept, mm (coarser beds hold too few particles).
-DX_MM_MAX = 10.0
+from ..models.sph import DX_MM_MAX  # noqa: E402  (largest spacing accepted, mm)
 _DX = typer.Option(None, "--dx-mm", help=f"Particle spacing, mm, in (0, {DX_MM_MAX:g}] "
                                          "(default: 2.5; --quick 4).")
 _BACKEND = typer.Option(Backend.cpu, "--backend",
@@ -35,20 +34,12 @@ _BOUNDARY = typer.Option("resolved", "--boundary", help="Leg boundary: resolved 
 
 def _material(medium: str, density_kg_m3: float | None, friction_deg: float | None,
               dilatancy: str = "none"):
-    """The SPH material of the options: a Li 2013 medium (optionally another friction angle)
-    or the user's own from its density and friction angle."""
-    from ..errors import InputError
-    from ..sph.materials import from_medium, from_properties
+    """The SPH material of the options (:func:`terradyn.models.sph.material`)."""
+    from .. import models
+    from ..models.sph import material
 
-    if density_kg_m3 is not None:
-        if friction_deg is None:
-            raise InputError("friction-deg", "your own medium (--density-kg-m3) needs "
-                                             "--friction-deg (find it: terradyn sph calibrate)")
-        if dilatancy != "none":
-            raise InputError("dilatancy", "'bolton' needs a Li 2013 medium with both packings "
-                                          "(poppy CP, 0.3 mm glass CP), not --density-kg-m3")
-        return from_properties(medium, density_kg_m3, friction_deg)
-    return from_medium(medium, friction_deg=friction_deg, dilatancy=dilatancy)
+    return material(medium, models.get("sph").check_options(
+        {"density_kg_m3": density_kg_m3, "friction_deg": friction_deg, "dilatancy": dilatancy}))
 
 
 @contextmanager
@@ -108,24 +99,26 @@ def _resumed(info: dict | None) -> None:
 def _unstable(e) -> None:
     from . import err
 
-    err(f"[bold red]error:[/] {e}")
+    from rich.markup import escape
+
+    err(f"[bold red]error:[/] {escape(str(e))}")
     raise typer.Exit(3)
 
 
 @sph_app.command("run")
 def run_cmd(
-    leg: Leg = typer.Option(Leg.flat, "--leg", help="Leg shape (flat, c, reverse-c, foot)."),
-    leg_file: Optional[Path] = typer.Option(None, "--leg-file", help="CSV polyline x_cm,z_cm from hip to tip."),
-    curvature: Optional[float] = typer.Option(None, help="Arc curvature in [-1, 1] (1 = C, -1 = reverse C)."),
-    length_cm: Optional[float] = typer.Option(None, help="Chord length, cm (default: 7.62)."),
-    width_cm: Optional[float] = typer.Option(None, help="Leg width, cm (default: 2.54)."),
+    leg: O.Leg = O.leg(),
+    leg_file: Optional[Path] = O.LEG_FILE,
+    curvature: Optional[float] = O.CURVATURE,
+    length_cm: Optional[float] = O.LENGTH_CM,
+    width_cm: Optional[float] = O.WIDTH_CM,
     thickness_cm: float = typer.Option(0.64, help="Leg thickness, cm."),
-    hip_height_cm: float = typer.Option(2.0, help="Hip height above the surface, cm."),
-    omega: float = typer.Option(0.2, help="Angular speed, rad/s."),
-    theta_start_deg: float = typer.Option(-135.0, help="First leg angle, deg."),
-    theta_end_deg: float = typer.Option(135.0, help="Last leg angle, deg."),
-    n_theta: int = typer.Option(271, help="Number of output angles."),
-    motion_file: Optional[Path] = typer.Option(None, help="Planar motion CSV time_s,hip_x_cm,hip_z_cm,angle_deg."),
+    hip_height_cm: Optional[float] = O.HIP_HEIGHT_CM,
+    omega: float = O.OMEGA,
+    theta_start_deg: Optional[float] = O.THETA_START_DEG,
+    theta_end_deg: Optional[float] = O.THETA_END_DEG,
+    n_theta: int = O.N_THETA,
+    motion_file: Optional[Path] = O.MOTION_FILE,
     medium: str = _MEDIUM,
     density_kg_m3: Optional[float] = _DENSITY,
     friction_deg: Optional[float] = _FRICTION,
@@ -139,8 +132,8 @@ def run_cmd(
     snapshots: int = typer.Option(0, help="Number of particle snapshots to keep (evenly over the motion; those in the simulated contact part)."),
     snapshots_out: Optional[Path] = typer.Option(None, help="Write the snapshots here (.nc)."),
     compare_rft: bool = typer.Option(False, help="Also run RFT and print peak differences and MSE."),
-    out: Optional[str] = typer.Option(None, "--out", "-o", help="Output .nc, .zarr or .csv (default: CSV on stdout)."),
-    plot: Optional[Path] = typer.Option(None, help="Figure of the forces (.png/.pdf/.svg)."),
+    out: Optional[str] = O.out(),
+    plot: Optional[Path] = O.PLOT,
     backend: Backend = _BACKEND,
 ):
     """SPH forces (Fx, Fz in N; torque in N m) on a leg moving through a granular bed.
@@ -149,11 +142,11 @@ def run_cmd(
     """
     import numpy as np
 
-    from .. import io
-    from ..api import leg_from_field_units, motion_from_field_units
-    from ..sph import SPHInstabilityError, simulate, snapshots_dataset
+    from .. import io, models
+    from ..fieldunits import leg_from_field_units, motion_from_field_units
+    from ..models import sph as sph_model
+    from ..sph import SPHInstabilityError, snapshots_dataset
     from ..sph.solver import check_checkpoint
-    from ..units import CM
     from . import err
 
     # every input and output is checked before the (long) run
@@ -161,36 +154,45 @@ def run_cmd(
     io.check_output(out, "out")
     io.check_plot(plot)
     io.check_output(snapshots_out, "snapshots-out", (".nc",))
+    if snapshots_out is not None and not snapshots:
+        models.ignored("snapshots-out", "has no effect without --snapshots N (N > 0)")
+    if snapshots and snapshots_out is None:
+        models.ignored("snapshots", "has no effect without --snapshots-out FILE.nc")
     check_checkpoint(checkpoint)  # not ours: refused, never overwritten (the run's key: later)
     shape = leg_from_field_units(leg.value, leg_file, curvature, length_cm, width_cm)
-    motion = motion_from_field_units(False, motion_file, omega, hip_height_cm, theta_start_deg,
-                                     theta_end_deg, n_theta)
-    cfg = _config(quick, dx_mm, cfl, lowpass_hz, Backend(backend).value, boundary)
-    mat = _material(medium, density_kg_m3, friction_deg, dilatancy)
+    motion = motion_from_field_units(leg.value == "foot" and leg_file is None, motion_file, omega,
+                                     hip_height_cm, theta_start_deg, theta_end_deg, n_theta)
+    model = models.get("sph")
+    opts = model.check_options(dict(
+        quick=quick, dx_mm=dx_mm, cfl=cfl, lowpass_hz=lowpass_hz, backend=Backend(backend).value,
+        boundary=boundary, friction_deg=friction_deg, density_kg_m3=density_kg_m3,
+        dilatancy=dilatancy, thickness_cm=positive("thickness-cm", thickness_cm, "cm")))
+    sph_model.config(opts)
+    sph_model.material(medium, opts)
     if compare_rft and density_kg_m3 is not None:
-        from ..errors import InputError
-
         raise InputError("compare-rft", "RFT needs the stress coefficients of a Li 2013 medium; "
                                         "your own medium has none")
     traj = motion.trajectory()
     snap_t = np.linspace(0, traj.time[-1] - traj.time[0], snapshots) if snapshots else ()
+    runs = []
     try:
         with _progress(f"SPH {shape.name}") as cb:
-            ds, res = simulate(shape, motion, mat, config=cfg, thickness=thickness_cm * CM,
-                               snapshot_times=snap_t, checkpoint=checkpoint, progress=cb,
-                               return_run=True, quick=quick)
+            ds = model.simulate(shape, motion, medium, **opts, snapshot_times=snap_t,
+                                checkpoint=checkpoint, progress=cb, on_run=runs.append)
     except SPHInstabilityError as e:
         _unstable(e)
+    res = runs[0] if runs else None
     _resumed(getattr(res, "resumed_from", None))
     io.emit(ds, out)
-    if snapshots and snapshots_out is not None and res is not None:
-        snapshots_dataset(res).to_netcdf(snapshots_out, engine="h5netcdf")
+    if snapshots and snapshots_out is not None:
+        if res is None or not res.snapshots:
+            models.ignored("snapshots", "the leg never reached the bed: no snapshots to write")
+        else:
+            io.write_netcdf(snapshots_dataset(res), snapshots_out)
     if compare_rft:
-        from ..media import stress_model
-        from ..rft import simulate as rft_sim
         from ..sph.validation import compare_with_rft
 
-        rft = rft_sim(shape, motion, stress_model(medium))
+        rft = models.simulate("rft", shape, motion, medium)
         err(json.dumps(compare_with_rft(ds, rft), indent=1))
     if plot is not None:
         from .. import plots
@@ -243,8 +245,7 @@ def column_cmd(aspect: list[float] = typer.Option([0.5, 1.0, 2.0], help="Aspect 
 @sph_app.command("plate")
 def plate_cmd(medium: str = _MEDIUM, density_kg_m3: Optional[float] = _DENSITY,
               friction_deg: Optional[float] = _FRICTION, dilatancy: str = _DILATANCY,
-              boundary: str = _BOUNDARY,
-              quick: bool = _QUICK, dx_mm: Optional[float] = _DX,
+              boundary: str = _BOUNDARY, quick: bool = _QUICK, dx_mm: Optional[float] = _DX,
               speed_cm_s: float = typer.Option(1.0, help="Plate speed, cm/s."),
               depth_cm: float = typer.Option(5.0, help="Final depth, cm."),
               plot: Optional[Path] = typer.Option(None, help="Figure: stress on the plate vs depth.")):
@@ -272,7 +273,7 @@ def legs_cmd(omega: list[float] = typer.Option([0.2], help="Angular speeds, rad/
              legs: list[str] = typer.Option(["flat", "c", "reverse-c"], "--leg", help="Legs (repeat)."),
              medium: str = _MEDIUM, quick: bool = _QUICK, dx_mm: Optional[float] = _DX,
              n_theta: int = typer.Option(271, help="Output angles."),
-             outdir: Path = typer.Option(Path("results/sph"), help="Directory for series, metrics and figures."),
+             outdir: Path = typer.Option(Path("results/sph"), "--out", "-o", "--outdir", help="Directory for series, metrics and figures."),
              checkpoint_dir: Optional[Path] = typer.Option(None, help="Directory for checkpoints (resume)."),
              backend: Backend = _BACKEND,
              ):
@@ -283,7 +284,7 @@ def legs_cmd(omega: list[float] = typer.Option([0.2], help="Angular speeds, rad/
     from ..sph.solver import check_checkpoint
 
     cfg = _config(quick, dx_mm, 0.2, None, Backend(backend).value)
-    io.check_writable(outdir, "outdir", directory=True)
+    io.check_writable(outdir, "out", directory=True)
     if checkpoint_dir is not None:
         io.check_writable(checkpoint_dir, "checkpoint-dir", directory=True)
     tags = [(name, w, f"{name}_w{w:g}") for name in legs for w in omega]
@@ -307,7 +308,7 @@ def legs_cmd(omega: list[float] = typer.Option([0.2], help="Angular speeds, rad/
         metrics[tag] = r["metrics"]
         plots.leg_comparison(r["sph"], r["rft"], outdir / f"sph_vs_rft_{tag}.png",
                              title=f"{name} leg, omega = {w:g} rad/s, {medium}")
-    (outdir / "metrics.json").write_text(json.dumps(metrics, indent=1))
+    io.atomic_write_text(outdir / "metrics.json", json.dumps(metrics, indent=1))
     typer.echo(json.dumps(metrics, indent=1))
 
 

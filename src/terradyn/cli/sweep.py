@@ -8,6 +8,8 @@ from typing import Optional
 
 import typer
 
+from . import sub_app
+
 
 def err(msg: str) -> None:
     """A message on stderr, never wrapped (paths and summaries stay greppable)."""
@@ -17,15 +19,17 @@ def err(msg: str) -> None:
 
 
 def register(app: typer.Typer) -> None:
-    sw = typer.Typer(name="sweep", no_args_is_help=True,
+    sw = sub_app(name="sweep", no_args_is_help=True,
                      help="Sweeps of simulations from a TOML spec: local pool or Dask, resumable store.")
 
     @sw.command("plan")
     def plan(spec: Path = typer.Argument(..., help="Sweep spec (TOML)."),
              as_json: bool = typer.Option(False, "--json", help="Full resolved cases as JSON.")):
         """Show the cases of SPEC without running them (CSV on stdout: case_id + varied values)."""
+        from .. import io
         from ..sweep import load
 
+        io.check_input(spec, "spec")
         s = load(spec)
         if as_json:
             sys.stdout.write(json.dumps([c.to_json() for c in s.cases], indent=1) + "\n")
@@ -51,9 +55,24 @@ def register(app: typer.Typer) -> None:
             out: Optional[Path] = typer.Option(None, "--out", help="Collect into this NetCDF when all cases are done."),
             quiet: bool = typer.Option(False, "--quiet", "-q", help="No progress bar.")):
         """Run the unfinished cases of SPEC into the store (rerun to resume)."""
+        from .. import io
         from ..sweep import collect, load, run as run_sweep
+        from ..sweep.execute import default_store
+        from ..sweep.store import Store
 
+        from ..errors import integer
+
+        io.check_input(spec, "spec")
+        io.check_output(out, "out", (".nc",))
+        if workers is not None:
+            integer("workers", workers, 0)
+        integer("retries", retries, 0)
         s = load(spec)
+        Store(store if store is not None else default_store(s)).claim(s)
+        st_path = store if store is not None else default_store(s)
+        io.check_writable(st_path, "store", directory=True)
+        if checkpoint_dir is not None:
+            io.check_writable(checkpoint_dir, "checkpoint-dir", directory=True)
         cb, bar = None, None
         if not quiet:
             from rich.console import Console
@@ -79,7 +98,9 @@ def register(app: typer.Typer) -> None:
         err(f"{summ.store}: {summ.done} run, {summ.skipped} already done, {len(summ.failed)} failed, "
             f"of {summ.total} ({summ.executor}, {summ.wall_s:.1f} s)")
         for cid, e in summ.failed.items():
-            err(f"  [red]failed[/] {cid}: {e}")
+            from rich.markup import escape
+
+            err(f"  [red]failed[/] {cid}: {escape(str(e))}")
         if summ.failed:
             err("rerun the same command to retry the failed cases")
             raise typer.Exit(1)
@@ -109,8 +130,10 @@ def register(app: typer.Typer) -> None:
                     out: Path = typer.Option(..., "--out", help="Output NetCDF (.nc)."),
                     partial: bool = typer.Option(False, "--partial", help="Collect even if some cases are not done.")):
         """Stack the finished cases into one NetCDF with a `case` dimension (the training tensor)."""
+        from .. import io
         from ..sweep import collect
 
+        io.check_output(out, "out", (".nc",))
         ds = collect(store, out, partial=partial)
         err(f"wrote {out}: {ds.sizes['case']} cases x {dict((k, v) for k, v in ds.sizes.items() if k != 'case')}")
 

@@ -26,7 +26,9 @@ def cross_validate(data: xr.Dataset, estimator: Surrogate | None = None,
     ``mse_baseline``; and ``predicted``, ``predicted_std``, ``truth`` (case, coord,
     component); ``ranks`` (case, mode). attrs: ``seconds`` (wall time)."""
     est = estimator if estimator is not None else Surrogate()
-    comps = list(est.components)
+    from ..series import components
+
+    comps = list(est.components) if est.components is not None else list(components(data))
     X, Y, coord, values, names = training_arrays(data, est.inputs, comps)
     n = len(X)
     if n < 4:

@@ -195,12 +195,13 @@ def read_observations(path, coord: str | None = None) -> xr.Dataset:
 def _obs_from_columns(columns, data, where: str) -> xr.Dataset:
     cols = list(columns)
     c = "theta" if "theta_deg" in cols else "time" if "time_s" in cols else None
-    comps = [k for k in ("Fx", "Fz") if f"{k}_N" in cols]
-    if c is None or not comps:
+    units = {"Fx": "N", "Fz": "N", "torque": "N_m"}
+    comps = [k for k in ("Fx", "Fz", "torque") if f"{k}_{units[k]}" in cols]
+    if c is None or not {"Fx", "Fz"} & set(comps):
         raise InputError("observations", f"{where}: need a theta_deg or time_s column and Fx_N and/or Fz_N; got {cols}")
     out = xr.Dataset(coords={c: np.asarray(data[f"{c}_deg" if c == "theta" else "time_s"], float)})
     for k in comps:
-        out[k] = (c, np.asarray(data[f"{k}_N"], float))
+        out[k] = (c, np.asarray(data[f"{k}_{units[k]}"], float))
     return out
 
 

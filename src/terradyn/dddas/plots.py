@@ -7,8 +7,12 @@ from pathlib import Path
 import numpy as np
 import xarray as xr
 
-UNITS = {"Fx": "N", "Fz": "N", "torque": "N m"}
+from ..io import atomic_save
+
+from ..series import LONG_NAMES as _LONG, UNITS  # noqa: E402  (the schema's units)
+
 LABELS = {"Fx": "horizontal force Fx", "Fz": "vertical force Fz", "torque": "torque"}
+LABELS.update({c: f"{_LONG.get(c, c)} {c}" for c in ("Fy", "Tx", "Ty", "Tz")})
 
 
 def _plt():
@@ -51,7 +55,7 @@ def explained_variance(surrogate, path, title: str = "") -> Path:
     ax.legend(fontsize=8)
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
-    fig.savefig(path, dpi=130)
+    atomic_save(path, lambda t: fig.savefig(t, dpi=130))
     plt.close(fig)
     return path
 
@@ -70,13 +74,16 @@ def _band(ax, x, y, std, color, alpha, label) -> bool:
 def prediction(pred: xr.Dataset, path, truth: xr.Dataset | None = None, title: str = "",
                observations: xr.Dataset | None = None, prior: xr.Dataset | None = None,
                truth_label: str = "truth") -> Path:
-    """Predicted Fx and Fz with +-2 std bands; optional truth, prior and observations."""
+    """Predicted force components (of the series' schema: Fx and Fz in 2D) with +-2 std
+    bands; optional truth, prior and observations."""
     plt = _plt()
-    from ..series import coord_of
+    from ..series import components, coord_of
 
     c = coord_of(pred)
-    fig, axes = plt.subplots(1, 2, figsize=(11, 4), constrained_layout=True)
-    for ax, v in zip(axes, ("Fx", "Fz")):
+    comps = components(pred)
+    fig, axes = plt.subplots(1, len(comps), figsize=(5.5 * len(comps), 4), constrained_layout=True,
+                             squeeze=False)
+    for ax, v in zip(axes[0], comps):
         x = pred[c].values
         if prior is not None:
             ax.plot(x, prior[v].values, color="0.5", ls="--", lw=1, label="prior (surrogate)")
@@ -99,7 +106,7 @@ def prediction(pred: xr.Dataset, path, truth: xr.Dataset | None = None, title: s
     fig.suptitle(title)
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
-    fig.savefig(path, dpi=130)
+    atomic_save(path, lambda t: fig.savefig(t, dpi=130))
     plt.close(fig)
     return path
 
@@ -131,7 +138,7 @@ def cv_errors(cv: xr.Dataset, path, title: str = "", reported: float | None = No
     fig.suptitle(title or "leave-one-condition-out cross-validation")
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
-    fig.savefig(path, dpi=130)
+    atomic_save(path, lambda t: fig.savefig(t, dpi=130))
     plt.close(fig)
     return path
 
@@ -154,7 +161,7 @@ def trial_comparison(cmp: xr.Dataset, path, title: str = "") -> Path:
     fig.suptitle((title or "trial vs RFT") + syn)
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
-    fig.savefig(path, dpi=130)
+    atomic_save(path, lambda t: fig.savefig(t, dpi=130))
     plt.close(fig)
     return path
 
@@ -170,6 +177,6 @@ def ess_trace(ess: np.ndarray, x: np.ndarray, path, n_particles: int, xlabel: st
     ax.set_title(title or "particle filter")
     ax.legend(fontsize=8)
     path = Path(path)
-    fig.savefig(path, dpi=130)
+    atomic_save(path, lambda t: fig.savefig(t, dpi=130))
     plt.close(fig)
     return path

@@ -28,6 +28,7 @@ import numpy as np
 import xarray as xr
 
 from ..errors import InputError, integer, positive
+from ..io import atomic_write_text, write_netcdf
 from ..units import CM, DEG
 from . import plots
 from .crossval import cross_validate, mse_table
@@ -285,7 +286,9 @@ def _cond_text(cond: dict) -> str:
 
 
 def _mse(a: xr.Dataset, b: xr.Dataset, v: str) -> float:
-    return float(np.mean((a[v].values - b[v].values) ** 2))
+    from ..compare import mse_values
+
+    return mse_values(a[v].values, b[v].values)
 
 
 def legs_study(out: str | Path, data=None, legs=LEGS, noise: float = 0.05,
@@ -355,7 +358,7 @@ def legs_study(out: str | Path, data=None, legs=LEGS, noise: float = 0.05,
         io_cv = cv.copy()
         io_cv.attrs["note"] = note
         tag(io_cv)
-        io_cv.to_netcdf(out / f"{shape}_cv.nc", engine="h5netcdf")
+        write_netcdf(io_cv, out / f"{shape}_cv.nc")
         mse_table(cv).to_csv(out / f"{shape}_cv.csv", index=False)
         plots.cv_errors(cv, out / f"{shape}_cv.png", f"{shape} leg: leave-one-out CV ({label})",
                         REPORTED_CV_MSE.get(shape))
@@ -381,7 +384,7 @@ def legs_study(out: str | Path, data=None, legs=LEGS, noise: float = 0.05,
                                                                       jitter_floor=jitter_floor)
         io.write(tag(post_pf), out / f"{shape}_posterior_pf.nc")
         io.write(tag(post_ex), out / f"{shape}_posterior_exact.nc")
-        tag(obs).to_netcdf(out / f"{shape}_observations.nc", engine="h5netcdf")
+        write_netcdf(tag(obs), out / f"{shape}_observations.nc")
         plots.prediction(post_pf, out / f"{shape}_assimilation.png", truth=truth, observations=obs, prior=prior,
                          truth_label=f"held-out case (truth, {'RFT' if rec['data'] is None else _short(source)})",
                          title=f"{_LEG_TITLE.get(shape, shape)} leg, held out: {_cond_text(cond)}; "
@@ -407,7 +410,7 @@ def legs_study(out: str | Path, data=None, legs=LEGS, noise: float = 0.05,
                 "pf_us_per_sample": t_pf * 1e6, "resamples": int(n_res),
                 "ess_min": float(ess.min())},
             "seconds": time.perf_counter() - t0}
-    (out / "summary.json").write_text(json.dumps(summary, indent=2, default=float))
+    atomic_write_text(out / "summary.json", json.dumps(summary, indent=2, default=float))
     return summary
 
 
@@ -451,7 +454,7 @@ def foot_study(out: str | Path, lengths_cm=None, test_cm: float = 29.0, max_deg:
     plots.explained_variance(sur, out / "foot_explained_variance.png", "foot: HOSVD explained variance")
     cv = cross_validate(ds, Surrogate(inputs=["length_cm"], energy=energy, random_state=seed))
     mse_table(cv).to_csv(out / "foot_cv.csv", index=False)
-    cv.to_netcdf(out / "foot_cv.nc", engine="h5netcdf")
+    write_netcdf(cv, out / "foot_cv.nc")
     plots.cv_errors(cv, out / "foot_cv.png", "foot: leave-one-length-out CV (RFT data)")
     truth_test = sim(test_cm)
     pred = sur.predict({"length_cm": test_cm})
@@ -509,5 +512,5 @@ def foot_study(out: str | Path, lengths_cm=None, test_cm: float = 29.0, max_deg:
         "trial_vs_rft": {k: v for k, v in cmpd.attrs.items() if k.endswith(("_mse", "_difference"))},
         "samples_assimilated": int(obs.sizes["theta"]), "pf_us_per_sample": t_pf * 1e6,
         "resamples": int(n_res), "ess_min": float(ess.min()), **summary_truth}
-    (out / "summary_foot.json").write_text(json.dumps(summary, indent=2, default=float))
+    atomic_write_text(out / "summary_foot.json", json.dumps(summary, indent=2, default=float))
     return summary

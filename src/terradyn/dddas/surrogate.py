@@ -22,12 +22,23 @@ import xarray as xr
 from sklearn.base import BaseEstimator
 
 from ..errors import InputError, finite_array, in_range, integer
-from ..series import coord_of, force_series, validate
+from ..series import coord_of
 from .hosvd import hosvd
 
 FORMAT = "terradyn-dddas-surrogate"
 FORMAT_VERSION = 1
-COMPONENT_UNITS = {"Fx": "N", "Fz": "N", "torque": "N m"}
+def _component_units() -> dict:
+    from ..series import SCHEMAS, UNITS
+
+    return {c: UNITS[c] for s in SCHEMAS.values() for c in s.components}
+
+
+#: Components a surrogate can model (those of every schema) and their units.
+COMPONENT_UNITS = _component_units()
+
+
+class ExtrapolationWarning(UserWarning):
+    """A prediction at a condition outside the range the surrogate was trained on."""
 
 
 def condition_names(data: xr.Dataset) -> list[str]:
@@ -82,7 +93,7 @@ class Surrogate(BaseEstimator):
     n_restarts: optimizer restarts per GP (deterministic through ``random_state``).
     """
 
-    def __init__(self, inputs: Sequence[str] | None = None, components: Sequence[str] = ("Fx", "Fz"),
+    def __init__(self, inputs: Sequence[str] | None = None, components: Sequence[str] | None = None,
                  energy: float = 0.95, step_energy: float = 0.9999,
                  ranks: Sequence[int | None] | None = None, center: bool = True,
                  scaling: str = "rms", length_scale_bounds: tuple[float, float] = (0.05, 100.0),
@@ -104,8 +115,9 @@ class Surrogate(BaseEstimator):
         self.random_state = random_state
 
     # ------------------------------------------------------------------ fitting
-    def _check_params(self):
-        comps = list(self.components)
+    def _check_params(self, comps=None):
+        comps = list(comps if comps is not None else self.components if self.components is not None
+                     else ("Fx", "Fz"))
         for c in comps:
             if c not in COMPONENT_UNITS:
                 raise InputError("components", f"unknown component {c!r}; allowed: {', '.join(COMPONENT_UNITS)}")
@@ -128,18 +140,21 @@ class Surrogate(BaseEstimator):
     def fit(self, data: xr.Dataset, y=None) -> "Surrogate":
         """Fit to a stack of force series along ``case`` whose condition coordinates are
         named by ``inputs``. Returns self."""
-        comps = self._check_params()
+        from ..series import components
+
+        comps = self._check_params(self.components if self.components is not None else components(data))
         X, Y, coord, values, names = training_arrays(data, self.inputs, comps)
         trained_on = {"model": data.attrs.get("model", "unknown"), "medium": data.attrs.get("medium", ""),
                       "leg": data.attrs.get("leg", ""), "n_cases": int(X.shape[0]),
                       "conditions": {n: X[:, i].tolist() for i, n in enumerate(names)},
                       "note": data.attrs.get("dddas_note", "")}
-        return self.fit_arrays(X, Y, coord, values, names, trained_on)
+        return self.fit_arrays(X, Y, coord, values, names, trained_on, components=comps)
 
     def fit_arrays(self, X, Y, coord: str, coord_values, input_names: Sequence[str],
-                   trained_on: dict[str, Any] | None = None) -> "Surrogate":
-        """Fit from arrays: X (n, q) conditions, Y (n, S, C) forces in N (N m for torque)."""
-        comps = self._check_params()
+                   trained_on: dict[str, Any] | None = None, components=None) -> "Surrogate":
+        """Fit from arrays: X (n, q) conditions, Y (n, S, C) forces in N (N m for torque);
+        ``components`` names the C components (default: the estimator's, else Fx, Fz)."""
+        comps = self._check_params(components)
         X = finite_array("conditions", X, ndim=2)
         Y = finite_array("training forces", Y, ndim=3)
         if Y.shape[0] != X.shape[0] or Y.shape[2] != len(comps):
@@ -232,6 +247,24 @@ class Surrogate(BaseEstimator):
             raise InputError("condition", f"need {q} value(s) per condition ({self.input_names_}), got {X.shape[1]}")
         return X
 
+    def outside_training(self, condition) -> list[str]:
+        """One line per input of ``condition`` outside the training range (empty if none)."""
+        X = self.conditions_array(condition)
+        lo, hi = self.X_train_.min(axis=0), self.X_train_.max(axis=0)
+        out = []
+        for k, n in enumerate(self.input_names_):
+            bad = (X[:, k] < lo[k]) | (X[:, k] > hi[k])
+            if bad.any():
+                out.append(f"{n}={X[bad, k][0]:g} is outside the training range [{lo[k]:g}, {hi[k]:g}]")
+        return out
+
+    def warn_extrapolation(self, condition) -> None:
+        """Warn (:class:`ExtrapolationWarning`) for a condition outside the training range."""
+        import warnings
+
+        for line in self.outside_training(condition):
+            warnings.warn(f"at: {line}: the surrogate extrapolates", ExtrapolationWarning, stacklevel=3)
+
     def predict_coefficients(self, condition) -> tuple[np.ndarray, np.ndarray]:
         """GP mean and standard deviation of the coefficients, each (m, D)."""
         X = self.conditions_array(condition)
@@ -250,16 +283,13 @@ class Surrogate(BaseEstimator):
     def series(self, mean: np.ndarray, std: np.ndarray, condition: dict, model: str,
                extra_inputs: dict | None = None) -> xr.Dataset:
         """A force series (S,) from component arrays mean/std (S, C)."""
-        j = {c: i for i, c in enumerate(self.components_)}
+        from ..series import make_series
+
         inputs = {"condition": condition, "surrogate": self.describe(), **(extra_inputs or {})}
-        extra = {"Fx_std": std[:, j["Fx"]], "Fz_std": std[:, j["Fz"]]}
-        if "torque" in j:
-            extra["torque_std"] = std[:, j["torque"]]
-        ds = force_series(self.coord_, self.coord_values_, mean[:, j["Fx"]], mean[:, j["Fz"]],
-                          mean[:, j["torque"]] if "torque" in j else None, model=model,
-                          inputs=inputs, extra=extra)
-        if "torque_std" in ds:
-            ds["torque_std"].attrs.update(units="N m", long_name="standard deviation of torque")
+        comps = self.components_
+        ds = make_series(self.coord_, self.coord_values_, {c: mean[:, i] for i, c in enumerate(comps)},
+                         schema="3d" if "Fy" in comps else "2d", model=model, inputs=inputs,
+                         extra={f"{c}_std": std[:, i] for i, c in enumerate(comps)})
         ds.attrs["leg"] = str(self.trained_on_.get("leg", ""))
         ds.attrs["medium"] = str(self.trained_on_.get("medium", ""))
         return ds
@@ -267,8 +297,10 @@ class Surrogate(BaseEstimator):
     def predict(self, condition, return_std: bool = True) -> xr.Dataset:
         """Force series at ``condition`` (dict name -> value, or a scalar for one input).
         One condition: a force series with Fx_std/Fz_std (N); several: a stack along ``case``.
-        ``return_std=False`` drops the std variables."""
+        ``return_std=False`` drops the std variables. A condition outside the training range
+        warns (:class:`ExtrapolationWarning`): the GP there returns towards its prior."""
         X = self.conditions_array(condition)
+        self.warn_extrapolation(X)
         mean, std = self.predict_arrays(X)
         out = []
         for i in range(len(X)):
@@ -348,7 +380,7 @@ class Surrogate(BaseEstimator):
 
         params = self.get_params()
         params["inputs"] = list(params["inputs"]) if params["inputs"] is not None else None
-        params["components"] = list(params["components"])
+        params["components"] = list(params["components"]) if params["components"] is not None else None
         ds.attrs.update(format=FORMAT, format_version=FORMAT_VERSION, coord=c,
                         params=json.dumps(params, default=list), ranks=json.dumps(list(map(int, self.ranks_))),
                         trained_on=json.dumps(self.trained_on_, default=str),
@@ -359,18 +391,16 @@ class Surrogate(BaseEstimator):
         ds["gp_theta"].attrs["long_name"] = "log-hyperparameters of each coefficient's GP kernel"
         return ds
 
-    def save(self, path) -> "Path":
+    def save(self, path):
         """Write the model to a NetCDF file (.nc). No pickle: arrays and JSON attributes."""
         from pathlib import Path
 
         path = Path(path)
         if path.suffix.lower() != ".nc":
             raise InputError("model file", f"must end in .nc, got {path.name}")
-        path.parent.mkdir(parents=True, exist_ok=True)
-        tmp = path.with_name(f".{path.name}.tmp")
-        self.to_dataset().to_netcdf(tmp, engine="h5netcdf")
-        tmp.replace(path)
-        return path
+        from ..io import write_netcdf
+
+        return write_netcdf(self.to_dataset(), path)
 
     @classmethod
     def from_dataset(cls, ds: xr.Dataset) -> "Surrogate":

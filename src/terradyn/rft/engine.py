@@ -72,7 +72,13 @@ def element_states(el: Elements, traj: Trajectory, surface: float = 0.0) -> Elem
 
 def element_forces(el: Elements, traj: Trajectory, model: StressModel, surface: float = 0.0,
                    states: ElementStates | None = None):
-    """Force on each element, (fx, fz) arrays (S, n) in N, and the states used."""
+    """Force on each element, (fx, fz) arrays (S, n) in N, and the states used. ``el``: the
+    elements or a leg (``leg.elements()``); ``traj``: a trajectory or a motion
+    (``motion.trajectory()``)."""
+    if hasattr(el, "elements") and callable(el.elements):
+        el = el.elements()
+    if hasattr(traj, "trajectory") and callable(traj.trajectory):
+        traj = traj.trajectory()
     st = states if states is not None else element_states(el, traj, surface)
     touching = (st.depth > 0) & (np.hypot(st.vx, st.vz) > REST_SPEED)
     fx = np.zeros_like(st.depth)

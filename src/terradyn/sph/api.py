@@ -19,6 +19,8 @@ from .state import SPHConfig
 #: Particle spacing of the full runs (m) and of the quick form used by tests.
 FULL_DX = 2.5e-3
 QUICK_DX = 4.0e-3
+#: Memory per particle (state, neighbour lists, work arrays), bytes: an upper estimate.
+PARTICLE_BYTES = 4096
 
 
 def default_config(quick: bool = False, **kw) -> SPHConfig:
@@ -45,20 +47,36 @@ def bed_extent(leg: Leg, traj, i0: int, i1: int, pad: float) -> tuple[float, flo
 
 
 def simulate(leg: Leg, motion: Rotation | PlanarMotion, medium: str | GranularMaterial = "3 mm glass CP",
-             *, quick: bool = False, config: SPHConfig | None = None, thickness: float = LEG_THICKNESS,
+             *, quick: bool = False, config: SPHConfig | None = None, thickness: float | None = None,
              bed_width: float | None = None, bed_depth: float | None = None,
-             snapshot_times=(), checkpoint=None, progress=None, return_run: bool = False):
-    """SPH forces on ``leg`` following ``motion`` through a bed of ``medium``.
+             checkpoint=None, progress=None, material: str | GranularMaterial | None = None) -> xr.Dataset:
+    """SPH forces on ``leg`` following ``motion`` through a bed of ``medium`` (a Li 2013
+    medium name or a :class:`GranularMaterial`; ``material=`` is the same argument by
+    another name): the force series of :func:`simulate_run`."""
+    if material is not None:
+        medium = material
+    return simulate_run(leg, motion, medium, quick=quick, config=config, thickness=thickness,
+                        bed_width=bed_width, bed_depth=bed_depth, checkpoint=checkpoint,
+                        progress=progress)[0]
+
+
+def simulate_run(leg: Leg, motion: Rotation | PlanarMotion, medium: str | GranularMaterial = "3 mm glass CP",
+                 *, quick: bool = False, config: SPHConfig | None = None, thickness: float | None = None,
+                 bed_width: float | None = None, bed_depth: float | None = None,
+                 snapshot_times=(), checkpoint=None, progress=None) -> tuple[xr.Dataset, RunResult | None]:
+    """SPH forces on ``leg`` following ``motion`` through a bed of ``medium``, and the run.
 
     Only the part of the motion where the leg is within one kernel support of the bed is
     simulated; before and after it the force is exactly zero (the leg is in air). Returns a
     force series (coordinate ``theta`` in deg for rotations, ``time`` in s otherwise) with
     Fx, Fz (N) and torque (N m) about the hip, sampled at the motion's samples from the
-    per-step record (optionally low-passed, ``config.lowpass_hz``). With ``return_run`` also
-    the :class:`RunResult` (per-step forces from the contact start; particle snapshots at
-    ``snapshot_times``: s since the motion's start, those inside the simulated part)."""
+    per-step record (optionally low-passed, ``config.lowpass_hz``), and the
+    :class:`RunResult` (None when the leg never nears the bed: per-step forces from the
+    contact start; particle snapshots at ``snapshot_times``: s since the motion's start,
+    those inside the simulated part)."""
     cfg = config or default_config(quick)
     mat = _material(medium)
+    thickness = LEG_THICKNESS if thickness is None else thickness
     positive("thickness", thickness, "m")
     traj = motion.trajectory()
     margin = 2.0 * cfg.h + cfg.dx
@@ -74,6 +92,11 @@ def simulate(leg: Leg, motion: Rotation | PlanarMotion, medium: str | GranularMa
         w_auto, d_auto = bed_extent(leg, traj, i0, i1, pad)
         bw = bed_width or w_auto
         bd = bed_depth or d_auto
+        from ..errors import check_memory
+
+        n_est = (bw / cfg.dx + 2 * cfg.wall_layers) * (bd / cfg.dx + cfg.wall_layers)
+        check_memory("dx-mm", n_est * PARTICLE_BYTES, f"a bed of about {n_est:,.0f} particles "
+                                                      f"(dx = {cfg.dx * 1e3:g} mm)")
         scene = leg_scene(leg, traj, i0, mat, bed_width=bw, bed_depth=bd, thickness=thickness,
                           config=cfg)
         duration = float(traj.time[i1] - traj.time[i0])
@@ -103,9 +126,7 @@ def simulate(leg: Leg, motion: Rotation | PlanarMotion, medium: str | GranularMa
                       time=traj.time if coord == "theta" else None)
     ds.attrs["filter"] = (f"zero-phase Butterworth low-pass {cfg.lowpass_hz} Hz (order 4)"
                           if cfg.lowpass_hz else "none (instantaneous per-step force)")
-    if return_run:
-        return ds, res
-    return ds
+    return ds, res
 
 
 def simulate_speeds(leg: Leg, omegas, medium="3 mm glass CP", *, quick=False, config=None,

@@ -503,15 +503,18 @@ def _save_checkpoint(path: Path, solver: Solver, key: str, rec, nrec) -> None:
 
 
 def lowpass(t: np.ndarray, y: np.ndarray, cutoff_hz: float, order: int = 4) -> np.ndarray:
-    """Zero-phase Butterworth low-pass (scipy ``filtfilt``) of a uniformly sampled record."""
-    from scipy.signal import butter, filtfilt
+    """Zero-phase Butterworth low-pass (:func:`terradyn.signal.lowpass`) of a uniformly
+    sampled record; a record too short to filter is returned as it is, with a warning."""
+    import warnings
 
-    if len(t) < 3 * (order + 1) + 1:
+    from ..signal import lowpass as _lowpass, min_samples
+
+    if len(t) < min_samples(order):
+        warnings.warn(f"lowpass-hz: the force record has {len(t)} samples, too few to filter; "
+                      "left unfiltered", stacklevel=2)
         return y
     fs = 1.0 / float(np.median(np.diff(t)))
-    wn = min(cutoff_hz / (0.5 * fs), 0.99)
-    b, a = butter(order, wn)
-    return filtfilt(b, a, y)
+    return _lowpass(y, fs, cutoff_hz, order, field="lowpass-hz")
 
 
 def warmup() -> None:

@@ -145,16 +145,17 @@ def plate_push(medium="3 mm glass CP", *, length=3.81 * CM, width=2.54 * CM, thi
 def compare_with_rft(sph, rft) -> dict:
     """Peak differences (%), mean square errors (N^2), suction and asymmetry of two series on
     the same theta grid (SPH first)."""
+    from .. import compare
+
     th = sph.theta.values
     out = {}
-    for comp in ("Fx", "Fz"):
-        a = sph[comp].values
-        b = rft[comp].values
-        pa, pb = np.abs(a).max(), np.abs(b).max()
-        out[f"peak_{comp}_sph"] = float(a[np.argmax(np.abs(a))])
-        out[f"peak_{comp}_rft"] = float(b[np.argmax(np.abs(b))])
-        out[f"peak_{comp}_diff_pct"] = float(100 * abs(pa - pb) / max(pb, 1e-12))
-        out[f"mse_{comp}"] = float(np.mean((a - b) ** 2))
+    peaks = compare.peak_difference(rft, sph, absolute=True)
+    errs = compare.mse(rft, sph)
+    for comp in peaks:
+        out[f"peak_{comp}_sph"] = peaks[comp]["peak_b"]
+        out[f"peak_{comp}_rft"] = peaks[comp]["peak_a"]
+        out[f"peak_{comp}_diff_pct"] = float(100 * peaks[comp]["rel_diff"]) if peaks[comp]["peak_a"] else 0.0
+        out[f"mse_{comp}"] = errs[comp]
     for name, s in (("sph", sph), ("rft", rft)):
         fz = s.Fz.values
         out[f"lift_intrusion_max_{name}"] = float(fz[th < 0].max()) if (th < 0).any() else 0.0

@@ -66,48 +66,19 @@ def _single_thread() -> None:
 
 
 def simulate_case(params: dict, checkpoint: str | None = None):
-    """Run one resolved case (see :func:`terradyn.sweep.spec.resolve`) -> force series.
-    ``checkpoint``: a file where a long SPH case keeps its state (resumed by a rerun)."""
+    """Run one resolved case (see :func:`terradyn.sweep.spec.resolve`) -> force series,
+    through the model registry (:mod:`terradyn.models`). ``checkpoint``: a file where a
+    model that supports it (SPH) keeps its state (resumed by a rerun)."""
+    from .. import models
+
     leg, motion = build(params)
-    m = params["model"]
-    if m["name"] == "rft":
-        from ..rft import simulate
-        from .spec import _stress_model
-        import json
-
-        key = json.dumps({k: v for k, v in m.items() if k != "name"}, sort_keys=True)
-        return simulate(leg, motion, _stress_model(key), medium=m["medium"])
-    if m["name"] == "sph":
-        sph = _sph_module()
-        from ..units import CM
-
-        kw = {k: m[k] for k in ("hdx", "cfl", "av_alpha", "av_beta", "wall_layers", "noslip")}
-        kw["boundary"] = m.get("boundary", "guard")  # stores made before the resolved boundary
-        if "settle_time_s" in m:
-            kw["settle_time"] = m["settle_time_s"]
-        if "lowpass_hz" in m:
-            kw["lowpass_hz"] = m["lowpass_hz"]
-        cfg = sph.SPHConfig(dx=m["dx_mm"] * 1e-3, **kw)
-        if "density_kg_m3" in m:
-            mat = sph.materials.from_properties(m["medium"], m["density_kg_m3"], m["friction_deg"])
-        else:
-            mat = sph.materials.from_medium(m["medium"], friction_deg=m.get("friction_deg"),
-                                            dilatancy=m.get("dilatancy", "none"))
-        return sph.simulate(leg, motion, mat, quick=m["quick"], config=cfg,
-                            thickness=m["thickness_cm"] * CM,
-                            bed_width=m["bed_width_cm"] * CM if "bed_width_cm" in m else None,
-                            bed_depth=m["bed_depth_cm"] * CM if "bed_depth_cm" in m else None,
-                            checkpoint=checkpoint)
-    raise InputError("sweep.model", f"unknown model {m['name']!r}")
-
-
-def _sph_module():
-    import importlib
-    import importlib.util
-
-    if importlib.util.find_spec("terradyn.sph") is None:
-        raise InputError("sweep.model", "'sph' needs terradyn.sph, which this installation does not have yet")
-    return importlib.import_module("terradyn.sph")
+    opts = dict(params["model"])
+    model = models.get(opts.pop("name"), "sweep.model")
+    medium = opts.pop("medium")
+    opts = {**model.legacy, **opts}
+    if checkpoint is not None and "checkpoint" in model.controls:
+        opts["checkpoint"] = checkpoint
+    return model.simulate(leg, motion, medium, **opts)
 
 
 def run_case(cid: str, params: dict, single_thread: bool = True, checkpoint_dir: str | None = None):
@@ -120,7 +91,9 @@ def run_case(cid: str, params: dict, single_thread: bool = True, checkpoint_dir:
 
     t0, started = time.perf_counter(), time.time()
     ck = None
-    if checkpoint_dir and params["model"]["name"] == "sph":
+    from .. import models
+
+    if checkpoint_dir and "checkpoint" in models.get(params["model"]["name"], "sweep.model").controls:
         Path(checkpoint_dir).mkdir(parents=True, exist_ok=True)
         ck = str(Path(checkpoint_dir) / f"{cid}.npz")
     ds = simulate_case(params, checkpoint=ck)
@@ -300,14 +273,13 @@ def run(spec: SweepSpec | str | Path, store: str | Path | None = None, *, worker
 
     if not isinstance(spec, SweepSpec):
         spec = load(spec)
-    if spec.model == "sph":
-        _sph_module()
     scheduler = scheduler or os.environ.get(SCHEDULER_ENV) or None
     if workers is not None and (not isinstance(workers, int) or workers < 0):
         raise InputError("workers", f"must be an integer >= 0, got {workers!r}")
     if not isinstance(retries, int) or retries < 0:
         raise InputError("retries", f"must be an integer >= 0, got {retries!r}")
     st = Store(store if store is not None else default_store(spec))
+    st.claim(spec)
     st.lock()
     try:
         st.clean_temporaries()

@@ -4,7 +4,7 @@ A spec names the model, the base parameters and the parameters to vary::
 
     [sweep]
     name = "rft-foot-lengths"        # label of the sweep (default: the file's stem)
-    model = "rft"                    # "rft" or "sph"
+    model = "rft"                    # a registered model: terradyn.models.names()
 
     [leg]                            # shape (flat, c, reverse-c, foot), length_cm, width_cm,
     shape = "foot"                   # elements, curvature
@@ -14,10 +14,11 @@ A spec names the model, the base parameters and the parameters to vary::
     kind = "foot"                    #   theta_start_deg, theta_end_deg, n_theta
     max_deg = 3.0                    # kind = "foot": max_deg, n_theta, omega_rad_s
 
-    [model]                          # rft: medium, alpha (fit|generic|table), zeta, interp
-    medium = "poppy LP"              # sph: medium, quick, dx_mm, hdx, cfl, av_alpha, av_beta,
+    [model]                          # medium + the model's options (terradyn.models):
+    medium = "poppy LP"              #   rft: alpha (fit|generic|table), zeta, interp, table_file
+                                     #   sph: quick, dx_mm, hdx, cfl, av_alpha, av_beta,
                                      #   wall_layers, noslip, settle_time_s, lowpass_hz,
-                                     #   thickness_cm, bed_width_cm, bed_depth_cm
+                                     #   thickness_cm, bed_width_cm, bed_depth_cm, ...
 
     [grid]                           # Cartesian product of every list here
     leg.length_cm = {start = 25, stop = 35, step = 1}
@@ -42,14 +43,14 @@ import json
 import math
 import tomllib
 from dataclasses import dataclass, field
-from functools import lru_cache
 from pathlib import Path
 from typing import Any
 
 from ..errors import InputError
 from ..units import CM, DEG
 
-MODELS = ("rft", "sph")
+from .. import models as _models
+
 SECTIONS = ("sweep", "leg", "motion", "model", "grid", "zip")
 SWEEP_KEYS = {"name": str, "model": str, "description": str}
 
@@ -61,13 +62,15 @@ MOTION_KEYS = {
                  "theta_end_deg": float, "n_theta": int},
     "foot": {"kind": str, "max_deg": float, "n_theta": int, "omega_rad_s": float},
 }
-MODEL_KEYS = {
-    "rft": {"medium": str, "alpha": str, "zeta": float, "interp": str},
-    "sph": {"medium": str, "quick": bool, "dx_mm": float, "hdx": float, "cfl": float, "av_alpha": float,
-            "av_beta": float, "wall_layers": int, "noslip": bool, "settle_time_s": float,
-            "lowpass_hz": float, "thickness_cm": float, "bed_width_cm": float, "bed_depth_cm": float,
-            "boundary": str, "friction_deg": float, "density_kg_m3": float, "dilatancy": str},
-}
+#: Largest number of cases a spec may expand to (each case is a simulation and a file).
+MAX_CASES = 100_000
+
+
+def model_keys(model: str) -> dict:
+    """The ``[model]`` keys of a registered model and their types: ``medium`` and its options."""
+    return {"medium": str} | {o.name: o.kind for o in _models.get(model, "sweep.model").options}
+
+
 ID_LENGTH = 12
 
 
@@ -134,9 +137,9 @@ def from_dict(doc: dict, name: str = "sweep", source: str = "<dict>", text: str 
         _check_type(f"sweep.{k}", v, SWEEP_KEYS.get(k), SWEEP_KEYS)
     model = sw.get("model")
     if model is None:
-        raise InputError("sweep.model", f"missing; one of {', '.join(MODELS)}")
-    if model not in MODELS:
-        raise InputError("sweep.model", f"unknown model {model!r}; allowed: {', '.join(MODELS)}")
+        raise InputError("sweep.model", f"missing; one of {', '.join(_models.names())}")
+    _models.get(model, "sweep.model")
+    name = check_name(sw["name"], "sweep.name") if "name" in sw else name
     base = {"leg": _table(doc, "leg"), "motion": _table(doc, "motion"), "model": _table(doc, "model")}
     axes = []
     grid = _table(doc, "grid")
@@ -162,10 +165,24 @@ def from_dict(doc: dict, name: str = "sweep", source: str = "<dict>", text: str 
                 raise InputError(p, "is varied twice (in [grid] and/or [[zip]])")
             seen.add(p)
             _check_path(p, model)
-    spec = SweepSpec(name=sw.get("name", name), model=model, base=base, axes=axes, text=text,
+    n_cases = math.prod(len(next(iter(ax.values()))) for ax in axes) if axes else 1
+    if n_cases > MAX_CASES:
+        raise InputError("grid", f"expands to {n_cases:,} cases, more than the limit {MAX_CASES:,} "
+                                 "(one simulation and one file each); split the sweep")
+    spec = SweepSpec(name=name, model=model, base=base, axes=axes, text=text,
                      description=sw.get("description", ""), source=source)
     spec.cases.extend(expand(spec))
     return spec
+
+
+def check_name(name: str, field: str = "sweep.name") -> str:
+    """A sweep name usable as a directory name in the working folder: no path separators,
+    no leading '.', no control characters, at most 100 characters."""
+    if not isinstance(name, str) or not name.strip() or name.startswith(".") or len(name) > 100 \
+            or any(c in name for c in "/\\") or any(ord(c) < 32 for c in name):
+        raise InputError(field, f"{name!r} is not a plain name (it names the store folder): "
+                                "no '/' or '\\', no leading '.', 1-100 characters")
+    return name
 
 
 def _table(doc: dict, key: str) -> dict:
@@ -195,6 +212,8 @@ def _values(key: str, v) -> list:
             raise InputError(f"{key}.{sorted(extra)[0]}", "unknown key; a range has start, stop and step or num")
         if ("step" in v) == ("num" in v):
             raise InputError(key, "a range needs exactly one of step or num")
+        if "num" in v and isinstance(v["num"], int) and v["num"] > MAX_CASES:
+            raise InputError(f"{key}.num", f"must be <= {MAX_CASES:,} (the case limit), got {v['num']!r}")
         for k in v:
             if not isinstance(v[k], _NUM) or isinstance(v[k], bool):
                 raise InputError(f"{key}.{k}", f"must be a number, got {v[k]!r}")
@@ -209,6 +228,8 @@ def _values(key: str, v) -> list:
             if s == 0 or not math.isfinite(s) or (b - a) * s < 0:
                 raise InputError(f"{key}.step", f"must be non-zero and point from start to stop, got {v['step']!r}")
             n = int(math.floor((b - a) / s + 1e-9)) + 1
+            if n > MAX_CASES:
+                raise InputError(key, f"expands to {n:,} values, more than the case limit {MAX_CASES:,}")
             vals = [a + i * s for i in range(n)]
         return [_canon(x) for x in vals]
     if not isinstance(v, list):
@@ -221,7 +242,7 @@ def _values(key: str, v) -> list:
 def _check_path(p: str, model: str) -> None:
     sec, _, key = p.partition(".")
     allowed = {"leg": LEG_KEYS, "motion": {k for m in MOTION_KEYS.values() for k in m},
-               "model": MODEL_KEYS[model]}
+               "model": model_keys(model)}
     if sec not in allowed:
         raise InputError(p, "only leg.*, motion.* and model.* parameters can be varied")
     if key not in allowed[sec] or key == "kind":
@@ -295,7 +316,7 @@ def _typed(sec: str, d: dict, keys: dict) -> dict:
 def resolve(model: str, raw: dict) -> dict:
     """Fill defaults and canonicalise one case's parameters (field units); raises
     :class:`InputError` naming the key of any bad value."""
-    from .. import geometry, media, motion as mo
+    from .. import geometry, motion as mo
 
     leg = _typed("leg", raw.get("leg", {}), LEG_KEYS)
     shape = leg.get("shape")
@@ -334,112 +355,14 @@ def resolve(model: str, raw: dict) -> dict:
                 "theta_start_deg": _canon(rot.theta_start / DEG), "theta_end_deg": _canon(rot.theta_end / DEG),
                 "n_theta": int(rot.n_theta)}
 
-    opts = _typed("model", raw.get("model", {}), MODEL_KEYS[model])
-    medium = opts.get("medium")
-    if medium is None:
-        raise InputError("model.medium", "missing; name the granular medium")
-    if model == "rft":
-        alpha = opts.get("alpha", "fit")
-        if alpha not in media.ALPHA_SOURCES:
-            raise InputError("model.alpha", f"unknown value {alpha!r}; allowed: {', '.join(media.ALPHA_SOURCES)}")
-        model_r = {"name": "rft", "medium": medium, "alpha": alpha}
-        if alpha == "generic":
-            model_r["zeta"] = opts.get("zeta", media.ZETA.get(medium))
-        elif "zeta" in opts:
-            raise InputError("model.zeta", "only applies with alpha = 'generic'")
-        if alpha == "table":
-            model_r["interp"] = opts.get("interp", "linear")
-        elif "interp" in opts:
-            raise InputError("model.interp", "only applies with alpha = 'table'")
-        _stress_model(json.dumps(model_r, sort_keys=True))  # validates medium, zeta, interp
-    else:
-        model_r = _resolve_sph(opts)
+    opts = _typed("model", raw.get("model", {}), model_keys(model))
+    model_r = _models.get(model, "sweep.model").resolve(opts)
     return {"leg": leg_r, "motion": motion_r, "model": model_r}
-
-
-def _resolve_sph(opts: dict) -> dict:
-    """SPH options with the solver's defaults filled in (terradyn.sph.SPHConfig)."""
-    import importlib.util
-
-    from .. import media
-
-    if importlib.util.find_spec("terradyn.sph") is None:
-        raise InputError("sweep.model", "'sph' needs terradyn.sph, which this installation does not have")
-    from ..sph import FULL_DX, QUICK_DX, SPHConfig
-    from ..sph.scenes import LEG_THICKNESS
-
-    medium = opts["medium"]
-    own = "density_kg_m3" in opts  # a user's medium: its name is free, density and phi given
-    if not own and medium not in media.MEDIA:
-        raise InputError("model.medium", f"unknown medium {medium!r}; allowed: {', '.join(media.MEDIA)} "
-                                         "(or give density_kg_m3 and friction_deg for your own)")
-    if own and "friction_deg" not in opts:
-        raise InputError("model.friction_deg", "your own medium (density_kg_m3) needs friction_deg "
-                                               "(find it: terradyn sph calibrate)")
-    if own and not opts["density_kg_m3"] > 0:
-        raise InputError("model.density_kg_m3", f"must be > 0 kg/m^3, got {opts['density_kg_m3']!r}")
-    if "friction_deg" in opts and not 0 < opts["friction_deg"] <= 80:
-        raise InputError("model.friction_deg", f"must be in (0, 80] deg, got {opts['friction_deg']!r}")
-    quick = bool(opts.get("quick", False))
-    dx = opts.get("dx_mm", (QUICK_DX if quick else FULL_DX) * 1e3) * 1e-3
-    kw = {k: opts[k] for k in ("hdx", "cfl", "av_alpha", "av_beta", "wall_layers", "noslip", "boundary")
-          if k in opts}
-    if "settle_time_s" in opts:
-        kw["settle_time"] = opts["settle_time_s"]
-    if "lowpass_hz" in opts:
-        kw["lowpass_hz"] = opts["lowpass_hz"]
-    try:
-        cfg = SPHConfig(dx=dx, **kw)
-    except InputError as e:
-        f = {"dx": "dx_mm", "settle-time": "settle_time_s", "lowpass": "lowpass_hz"}.get(
-            e.field, e.field.replace("-", "_"))
-        raise InputError(f"model.{f}", str(e).split(": ", 1)[-1]) from None
-    for k in ("thickness_cm", "bed_width_cm", "bed_depth_cm"):
-        if k in opts and not opts[k] > 0:
-            raise InputError(f"model.{k}", f"must be > 0 cm, got {opts[k]!r}")
-    out = {"name": "sph", "medium": medium, "quick": quick, "dx_mm": _canon(cfg.dx * 1e3), "hdx": _canon(cfg.hdx),
-           "cfl": _canon(cfg.cfl), "av_alpha": _canon(cfg.av_alpha), "av_beta": _canon(cfg.av_beta),
-           "wall_layers": int(cfg.wall_layers), "noslip": bool(cfg.noslip), "boundary": cfg.boundary,
-           "thickness_cm": _canon(opts.get("thickness_cm", LEG_THICKNESS / CM))}
-    for k in ("friction_deg", "density_kg_m3"):
-        if k in opts:
-            out[k] = _canon(opts[k])
-    if opts.get("dilatancy", "none") != "none":  # absent = "none": case ids of older stores kept
-        from ..sph.materials import from_medium
-
-        if own:
-            raise InputError("model.dilatancy", "'bolton' needs a Li 2013 medium with both "
-                                                "packings, not density_kg_m3")
-        try:
-            from_medium(medium, friction_deg=opts.get("friction_deg"), dilatancy=opts["dilatancy"])
-        except InputError as e:
-            raise InputError("model.dilatancy", str(e).split(": ", 1)[-1]) from None
-        out["dilatancy"] = opts["dilatancy"]
-    if cfg.settle_time is not None:
-        out["settle_time_s"] = _canon(cfg.settle_time)
-    if cfg.lowpass_hz is not None:
-        out["lowpass_hz"] = _canon(cfg.lowpass_hz)
-    for k in ("bed_width_cm", "bed_depth_cm"):
-        if k in opts:
-            out[k] = opts[k]
-    return out
 
 
 _FIELD_ALIASES = {"length": "length_cm", "width": "width_cm", "elements": "elements",
                   "omega": "omega_rad_s", "hip-height": "hip_height_cm", "theta-start": "theta_start_deg",
                   "theta-end": "theta_end_deg", "n-theta": "n_theta", "theta range": "theta_end_deg"}
-
-
-@lru_cache(maxsize=64)
-def _stress_model(key: str):
-    from .. import media
-
-    o = json.loads(key)
-    try:
-        return media.stress_model(o["medium"], alpha=o["alpha"], zeta=o.get("zeta"),
-                                  interp=o.get("interp", "linear"))
-    except InputError as e:
-        raise InputError(f"model.{e.field}", str(e).split(": ", 1)[-1]) from None
 
 
 def build(params: dict):

@@ -36,6 +36,26 @@ EVENTS = "events.jsonl"
 LOCK = ".lock"
 
 
+def spec_identity(name: str, model: str, base: dict) -> str:
+    """What binds a store to its spec: a hash of the sweep's name, model and fixed (base)
+    parameters; the varied grid may grow or shrink."""
+    import hashlib
+
+    blob = json.dumps([name, model, base], sort_keys=True, default=str)
+    return hashlib.sha256(blob.encode()).hexdigest()[:16]
+
+
+def _old_identity(plan: dict) -> str:
+    """The identity of a store written before stores recorded one (from its spec text)."""
+    from .spec import parse
+
+    try:
+        base = parse(plan.get("spec_toml", ""), name=plan.get("name", "")).base
+    except InputError:
+        base = None
+    return spec_identity(plan.get("name", ""), plan.get("model", ""), base)
+
+
 def now() -> str:
     return _dt.datetime.now(_dt.timezone.utc).isoformat(timespec="milliseconds")
 
@@ -65,6 +85,29 @@ class Store:
             raise InputError("store", f"{s.path} is not a sweep store (no {PLAN})")
         return s
 
+    def claim(self, spec) -> None:
+        """Refuse (:class:`InputError` on ``store``) a path that this spec must not write: a
+        file, a folder with other content that is not a sweep store, or the store of
+        another spec (another name, model or fixed parameters; the same spec with a grown or
+        shrunk grid is the same sweep). Nothing is created or removed."""
+        p = self.path
+        if p.exists() and not p.is_dir():
+            raise InputError("store", f"{p} is a file, not a sweep store; give another --store")
+        if p.is_dir() and not (p / PLAN).is_file():
+            if any(x.name != LOCK for x in p.iterdir()):
+                raise InputError("store", f"{p} exists and is not a sweep store (no {PLAN}); "
+                                          "it is left alone: give another --store")
+            return
+        if (p / PLAN).is_file():
+            plan = self.plan()
+            ours = spec_identity(spec.name, spec.model, spec.base)
+            theirs = plan.get("spec_id") or _old_identity(plan)
+            if ours != theirs:
+                raise InputError("store", f"{p} belongs to another spec ({plan.get('name')!r}, model "
+                                          f"{plan.get('model')!r}, from {plan.get('source') or 'a spec'}; this "
+                                          f"spec: {spec.name!r}, {spec.model!r}, other fixed parameters or "
+                                          "name); give another --store")
+
     def write_plan(self, spec) -> None:
         """Create the store if needed and record ``spec`` and its cases as the plan."""
         for d in (self.path, self.path / CASES, self.path / FAILED):
@@ -73,7 +116,8 @@ class Store:
 
         plan = {"name": spec.name, "model": spec.model, "description": spec.description,
                 "source": spec.source, "spec_toml": spec.text, "varied": spec.varied,
-                "terradyn_version": __version__, "cases": [c.to_json() for c in spec.cases]}
+                "terradyn_version": __version__, "cases": [c.to_json() for c in spec.cases],
+                "spec_id": spec_identity(spec.name, spec.model, spec.base)}
         _atomic_bytes(self.path / PLAN, json.dumps(plan, indent=1, sort_keys=True).encode())
 
     def plan(self) -> dict:
@@ -274,8 +318,15 @@ def _coord_names(varied: list[str]) -> dict[str, str]:
             for p, l in zip(varied, last)}
 
 
-_RESERVED = {"case", "case_id", "theta", "time", "Fx", "Fz", "torque", "host", "wall_time_s",
-             "terradyn_version", "input", "params"}
+def _reserved() -> set:
+    from ..series import SCHEMAS
+
+    comps = {c for s in SCHEMAS.values() for c in s.components}
+    return comps | {f"{c}_std" for c in comps} | {"case", "case_id", "theta", "time", "host",
+                                                  "wall_time_s", "terradyn_version", "input", "params"}
+
+
+_RESERVED = _reserved()
 
 
 def collect(path: str | Path, out: str | Path | None = None, partial: bool = False) -> xr.Dataset:
@@ -319,7 +370,9 @@ def collect(path: str | Path, out: str | Path | None = None, partial: bool = Fal
     ds["terradyn_version"] = ("case", [str(p["terradyn_version"]) for p in prov])
     ds["params"] = ("case", [json.dumps(c["params"], sort_keys=True) for c in cases])
     ds["input"] = ("case", [str(p["input"]) for p in prov])
-    for v in ("Fx", "Fz", "torque", dim, "time"):
+    from ..series import components
+
+    for v in components(series[0], torques=True) + (dim, "time"):
         if v in ds.variables and v in series[0].variables:
             ds[v].attrs.update(series[0][v].attrs)
     from .. import __version__

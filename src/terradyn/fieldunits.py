@@ -1,0 +1,115 @@
+"""Field-unit adapters (cm, deg, mm) shared by the command line, the studies and scripts:
+they check inputs in the user's units, convert at the edge and build the SI objects.
+
+Messages quote values back in the units they were given (``length-cm: must be > 0 cm,
+got -7``); options that have no effect with the others raise an
+:class:`terradyn.models.IgnoredOptionWarning` (the CLI prints it as one line); sizes
+that would need more memory than the machine has are refused before any allocation
+(:func:`terradyn.errors.check_memory`).
+"""
+from __future__ import annotations
+
+from pathlib import Path
+
+import xarray as xr
+
+from .errors import InputError, check_memory, finite, integer, positive
+from .geometry import Leg, make_leg, read_leg_csv
+from .motion import Rotation, read_motion_csv
+from .units import CM, DEG
+
+#: The default leg of every command that takes one.
+DEFAULT_LEG = "c"
+#: Bytes per (sample x element) of an RFT evaluation (states, velocities, forces in float64).
+RFT_BYTES_PER_EVAL = 8 * 24
+
+
+def leg_from_field_units(leg: str = DEFAULT_LEG, leg_file: Path | None = None,
+                         curvature: float | None = None, length_cm: float | None = None,
+                         width_cm: float | None = None, elements: int = 100) -> Leg:
+    """A leg from CLI-style inputs: a preset (with optional curvature, length and width in
+    cm) or a polyline CSV; unset sizes take the preset's defaults."""
+    from .models import ignored
+
+    for name, v in (("length-cm", length_cm), ("width-cm", width_cm)):
+        if v is not None:
+            positive(name, v, "cm")
+    if curvature is not None:
+        finite("curvature", curvature)
+        if not -1.0 <= curvature <= 1.0:
+            raise InputError("curvature", f"must be in [-1, 1], got {curvature!r}")
+    integer("elements", elements, 2)
+    check_memory("elements", elements * 64, f"{elements:,} elements")
+    if leg_file is not None:
+        if curvature is not None:
+            raise InputError("curvature", "cannot be combined with --leg-file")
+        if length_cm is not None:
+            ignored("length-cm", "has no effect with --leg-file (the polyline sets the length)")
+        return read_leg_csv(leg_file, (width_cm if width_cm is not None else 2.54) * CM, elements)
+    if leg == "foot" and curvature is not None:
+        ignored("curvature", "has no effect with --leg foot (the foot is a flat sole)")
+        curvature = None
+    return make_leg(leg, None if length_cm is None else length_cm * CM,
+                    None if width_cm is None else width_cm * CM, elements, curvature)
+
+
+def motion_from_field_units(foot: bool = False, motion_file: Path | None = None,
+                            omega: float = 0.2, hip_height_cm: float | None = None,
+                            theta_start_deg: float | None = None,
+                            theta_end_deg: float | None = None, n_theta: int = 271):
+    """A planar motion CSV, or a rotation whose unset values follow the standard test
+    (h = 2 cm, -135..135 deg) or, for the foot, the thesis's foot test (h = 0, 0..3 deg)."""
+    from .models import ignored
+
+    if motion_file is not None:
+        for name, v in (("hip-height-cm", hip_height_cm), ("theta-start-deg", theta_start_deg),
+                        ("theta-end-deg", theta_end_deg)):
+            if v is not None:
+                ignored(name, "has no effect with --motion-file (the file gives the motion)")
+        return read_motion_csv(motion_file)
+    positive("omega", omega, "rad/s")
+    for name, v in (("hip-height-cm", hip_height_cm), ("theta-start-deg", theta_start_deg),
+                    ("theta-end-deg", theta_end_deg)):
+        if v is not None:
+            finite(name, v, name.rsplit("-", 1)[-1])
+    integer("n-theta", n_theta, 2)
+    check_memory("n-theta", n_theta * 8 * 16, f"{n_theta:,} angles")
+    h = hip_height_cm if hip_height_cm is not None else (0.0 if foot else 2.0)
+    t0 = theta_start_deg if theta_start_deg is not None else (0.0 if foot else -135.0)
+    t1 = theta_end_deg if theta_end_deg is not None else (3.0 if foot else 135.0)
+    if t0 == t1:
+        raise InputError("theta-end-deg", f"equals theta-start-deg ({t0:g} deg): an empty range")
+    return Rotation(omega, h * CM, t0 * DEG, t1 * DEG, n_theta)
+
+
+def check_rft_size(n_samples: int, n_elements: int, field: str = "n-theta") -> None:
+    """Refuse an RFT evaluation of ``n_samples`` x ``n_elements`` that would not fit in memory."""
+    check_memory(field, n_samples * n_elements * RFT_BYTES_PER_EVAL,
+                 f"{n_samples:,} samples x {n_elements:,} elements")
+
+
+def series_from_field_units(model: str = "rft", leg: str = DEFAULT_LEG, leg_file: Path | None = None,
+                            curvature: float | None = None, length_cm: float | None = None,
+                            width_cm: float | None = None, hip_height_cm: float | None = None,
+                            omega: float = 0.2, theta_start_deg: float | None = None,
+                            theta_end_deg: float | None = None, n_theta: int = 271,
+                            elements: int = 100, medium: str = "3 mm glass CP",
+                            motion_file: Path | None = None, **options) -> xr.Dataset:
+    """A force series of a registered model from field-unit inputs; defaults follow the leg
+    (standard test for flat/c/reverse-c, the thesis's foot test for the foot). ``options``:
+    the model's options (:mod:`terradyn.models`)."""
+    from . import models
+
+    m = models.get(model)
+    shape = leg_from_field_units(leg, leg_file, curvature, length_cm, width_cm, elements)
+    motion = motion_from_field_units(leg == "foot" and leg_file is None, motion_file, omega,
+                                     hip_height_cm, theta_start_deg, theta_end_deg, n_theta)
+    if model == "rft":
+        check_rft_size(len(motion.trajectory().time) if motion_file is not None else n_theta,
+                       shape.n_elements)
+    return m.simulate(shape, motion, medium, **options)
+
+
+def rft_series(**kw) -> xr.Dataset:
+    """RFT force series from field-unit inputs (:func:`series_from_field_units`)."""
+    return series_from_field_units("rft", **kw)
