@@ -1,0 +1,336 @@
+"""3D-RFT force engine: net wrench and per-element tractions of a body at given poses.
+
+Conventions (SI): world frame x forward, y left, z up; the free surface of the bed is the plane
+z = ``surface`` (m; bed below). A pose is a position ``X`` (3,) m of the body-frame origin and a
+unit quaternion ``q = (w, x, y, z)`` (scalar first, as MuJoCo) rotating body to world: a body
+point ``c`` sits at ``X + R(q) c``. Velocities: ``V`` (3,) m/s of the body-frame origin and
+angular velocity ``W`` (3,) rad/s, both in the world frame; an element moves at V + W x r,
+r = R(q) c. Forces are those of the medium on the body (N); torques (N m) are about a world
+point (default: the body-frame origin X at each step).
+
+Each element below the surface (depth = surface - z > 0) and leading (n . v >= 0) feels
+``t = alpha(n, v^) depth`` (N/m^2, :mod:`terradyn.rft3d.model`) and, with the dynamic option
+(Agarwal et al. 2021), ``- n lambda rho (n . v)^2`` in addition.
+
+Two paths compute the same thing:
+
+* :func:`element_tractions` - NumPy, every per-element quantity (tractions, depths,
+  velocities, world positions), any surface-correction hook; the straightforward reference;
+* a compiled kernel (:func:`wrench`, :func:`wrench_batch`) - the same law per element without a
+  trigonometric call; serial for small work (one pose of a 2,000-triangle foot: no parallel
+  region to pay for), parallel over poses and element blocks above :data:`PARALLEL_MIN_WORK`.
+"""
+from __future__ import annotations
+
+import numba
+import numpy as np
+
+from ..errors import InputError, finite_array
+from .body import Body
+from .model import Medium3D, cap_tangential, coefficients, generic_alpha
+
+#: Speeds below this (m/s) count as "at rest": no RFT force.
+REST_SPEED = 1e-12
+#: Element evaluations (poses x elements) from which the compiled kernel runs in parallel.
+#: Below it a Numba parallel region costs more than it saves, and much more on a busy machine
+#: (benchmarks/bench_rft3d.py).
+PARALLEL_MIN_WORK = 200_000
+#: Unit-norm tolerance of quaternions (|q| must be within this of 1).
+QUAT_TOL = 1e-6
+
+
+# ------------------------------------------------------------------------------------------
+# Poses
+# ------------------------------------------------------------------------------------------
+def check_quaternions(q, field: str = "quaternion") -> np.ndarray:
+    """(S, 4) or (4,) unit quaternions (w, x, y, z); raise if any is not normalised."""
+    q = finite_array(field, q)
+    if q.shape[-1] != 4:
+        raise InputError(field, f"must have 4 components (w, x, y, z), got shape {q.shape}")
+    norm = np.linalg.norm(q, axis=-1)
+    bad = np.abs(norm - 1.0) > QUAT_TOL
+    if np.any(bad):
+        i = int(np.argmax(np.atleast_1d(bad)))
+        raise InputError(field, f"must be a unit quaternion (w, x, y, z) with |q| = 1 within "
+                                f"{QUAT_TOL:g}; sample {i} has |q| = {np.atleast_1d(norm)[i]:.9g}")
+    return q
+
+
+def rotation_matrices(q) -> np.ndarray:
+    """Rotation matrices (..., 3, 3) of unit quaternions (..., 4) in (w, x, y, z) order."""
+    q = np.asarray(q, float)
+    w, x, y, z = q[..., 0], q[..., 1], q[..., 2], q[..., 3]
+    return np.stack([
+        np.stack([1 - 2 * (y * y + z * z), 2 * (x * y - w * z), 2 * (x * z + w * y)], -1),
+        np.stack([2 * (x * y + w * z), 1 - 2 * (x * x + z * z), 2 * (y * z - w * x)], -1),
+        np.stack([2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y)], -1)], -2)
+
+
+def _steps(position, quaternion, velocity, angular_velocity, point, surface):
+    """Broadcast pose inputs to (S, .) float arrays; checks finiteness and quaternions."""
+    X = np.atleast_2d(finite_array("position", position))
+    q = np.atleast_2d(check_quaternions(quaternion))
+    V = np.atleast_2d(finite_array("velocity", velocity))
+    W = np.atleast_2d(finite_array("angular_velocity", angular_velocity))
+    S = max(len(X), len(q), len(V), len(W))
+    for name, a in (("position", X), ("velocity", V), ("angular_velocity", W)):
+        if a.shape[-1] != 3 or len(a) not in (1, S):
+            raise InputError(name, f"must be (3,) or ({S}, 3) in m, m/s or rad/s, got shape {a.shape}")
+    if len(q) not in (1, S):
+        raise InputError("quaternion", f"must be (4,) or ({S}, 4), got shape {q.shape}")
+    X, V, W = (np.broadcast_to(a, (S, 3)) for a in (X, V, W))
+    q = np.broadcast_to(q, (S, 4))
+    P = X if point is None else np.broadcast_to(np.atleast_2d(finite_array("point", point)), (S, 3))
+    h = np.broadcast_to(np.atleast_1d(finite_array("surface", surface)).astype(float), (S,))
+    return X, q, V, W, P, h
+
+
+# ------------------------------------------------------------------------------------------
+# NumPy reference: every per-element quantity
+# ------------------------------------------------------------------------------------------
+def element_tractions(body: Body, position, quaternion, velocity, angular_velocity,
+                      medium: Medium3D, surface=0.0, point=None, dynamic_lambda: float | None = None,
+                      surface_correction=None, coef: np.ndarray | None = None) -> dict:
+    """Per-element 3D-RFT result for S poses (NumPy).
+
+    Inputs as :func:`wrench_batch` (single poses broadcast). ``surface_correction``: optional
+    hook ``f(r, v) -> delta_h`` with world element positions r and velocities v (S, n, 3) giving
+    delta_h (S, n) in m; the depth used is that of z~ = z + delta_h (Agarwal 2021), i.e.
+    ``max(surface - z - delta_h, 0)``.
+
+    Returns a dict of arrays: ``traction`` (S, n, 3) N/m^2 (force per element area on the body),
+    ``force`` (S, n, 3) N, ``r`` (S, n, 3) m world centroids, ``v`` (S, n, 3) m/s,
+    ``normal`` (S, n, 3), ``depth`` (S, n) m, ``active`` (S, n) bool, and the net ``wrench``
+    (S, 6): Fx, Fy, Fz (N), Tx, Ty, Tz (N m) about ``point``.
+    """
+    X, q, V, W, P, h = _steps(position, quaternion, velocity, angular_velocity, point, surface)
+    R = rotation_matrices(q)
+    off = np.einsum("sij,nj->sni", R, body.centroids)
+    n = np.einsum("sij,nj->sni", R, body.normals)
+    r = X[:, None, :] + off
+    v = V[:, None, :] + np.cross(W[:, None, :], off)
+    depth = h[:, None] - r[..., 2]
+    if surface_correction is not None:
+        dh = np.asarray(surface_correction(r, v), float)
+        if dh.shape != depth.shape or not np.isfinite(dh).all():
+            raise InputError("surface_correction", f"must return finite delta_h of shape {depth.shape} in m")
+        depth = depth - dh
+    depth = np.maximum(depth, 0.0)
+    speed = np.linalg.norm(v, axis=-1)
+    vn = np.einsum("snk,snk->sn", n, v)
+    active = (depth > 0) & (speed > REST_SPEED) & (vn >= 0)
+    vhat = v / np.maximum(speed, REST_SPEED)[..., None]
+    t = np.zeros_like(r)
+    if active.any():
+        a = generic_alpha(n[active], vhat[active], coefficients() if coef is None else coef)
+        a = medium.xi_n * cap_tangential(a, n[active], medium.mu_surf)
+        t[active] = a * depth[active][:, None]
+        if dynamic_lambda:
+            t[active] -= n[active] * (dynamic_lambda * medium.bulk_density * vn[active] ** 2)[:, None]
+    force = t * body.areas[None, :, None]
+    F = force.sum(1)
+    T = np.cross(r - P[:, None, :], force).sum(1)
+    return {"traction": t, "force": force, "r": r, "v": v, "normal": n, "depth": depth,
+            "active": active, "wrench": np.concatenate([F, T], axis=1)}
+
+
+# ------------------------------------------------------------------------------------------
+# Compiled kernel
+# ------------------------------------------------------------------------------------------
+#: Columns of a pose table row: X(3) R(9, row-major) V(3) W(3) point(3) surface(1).
+POSE_COLUMNS = 22
+
+
+def pose_table(X, q, V, W, P, h) -> np.ndarray:
+    """(S, 22) contiguous pose table for the kernel (see :data:`POSE_COLUMNS`)."""
+    S = len(X)
+    T = np.empty((S, POSE_COLUMNS))
+    T[:, 0:3] = X
+    T[:, 3:12] = rotation_matrices(q).reshape(S, 9)
+    T[:, 12:15] = V
+    T[:, 15:18] = W
+    T[:, 18:21] = P
+    T[:, 21] = h
+    return T
+
+
+@numba.njit(fastmath=True, inline="always", error_model="numpy")
+def _element_force(G, i, T, j, c1, c2, c3, xi, mus, lamrho):  # pragma: no cover - compiled
+    """Force (N) on element i at pose j and its world offset from the torque point."""
+    bx, by, bz = G[i, 0], G[i, 1], G[i, 2]
+    ox = T[j, 3] * bx + T[j, 4] * by + T[j, 5] * bz
+    oy = T[j, 6] * bx + T[j, 7] * by + T[j, 8] * bz
+    oz = T[j, 9] * bx + T[j, 10] * by + T[j, 11] * bz
+    depth = T[j, 21] - T[j, 2] - oz
+    zero = 0.0
+    if depth <= zero:
+        return zero, zero, zero, zero, zero, zero
+    wx, wy, wz = T[j, 15], T[j, 16], T[j, 17]
+    vx = T[j, 12] + wy * oz - wz * oy
+    vy = T[j, 13] + wz * ox - wx * oz
+    vz = T[j, 14] + wx * oy - wy * ox
+    ax_, ay_, az_ = G[i, 3], G[i, 4], G[i, 5]
+    nx = T[j, 3] * ax_ + T[j, 4] * ay_ + T[j, 5] * az_
+    ny = T[j, 6] * ax_ + T[j, 7] * ay_ + T[j, 8] * az_
+    nz = T[j, 9] * ax_ + T[j, 10] * ay_ + T[j, 11] * az_
+    vn = nx * vx + ny * vy + nz * vz
+    v2 = vx * vx + vy * vy + vz * vz
+    if vn < zero or v2 <= 1e-24:
+        return zero, zero, zero, zero, zero, zero
+    inv = 1.0 / np.sqrt(v2)
+    ux, uy, uz = vx * inv, vy * inv, vz * inv
+    s = 1.0 if nz >= zero else -1.0
+    x1 = -uz
+    x2 = abs(nz)
+    x3 = -s * vn * inv
+    x11, x22, x33 = x1 * x1, x2 * x2, x3 * x3
+    m = (1.0, x1, x2, x3, x11, x22, x33, x1 * x2, x2 * x3, x3 * x1, x11 * x1, x22 * x2, x33 * x3,
+         x1 * x22, x2 * x11, x2 * x33, x3 * x22, x3 * x11, x1 * x33, x1 * x2 * x3)
+    f1 = zero
+    f2 = zero
+    f3 = zero
+    for k in range(20):
+        f1 += c1[k] * m[k]
+        f2 += c2[k] * m[k]
+        f3 += c3[k] * m[k]
+    g1 = -s * f1
+    gx = g1 * nx + f2 * ux
+    gy = g1 * ny + f2 * uy
+    gz = g1 * nz + f2 * uz - f3
+    an = gx * nx + gy * ny + gz * nz  # normal part: an n; tangential part g - an n, capped
+    tx, ty, tz = gx - an * nx, gy - an * ny, gz - an * nz
+    tn2 = tx * tx + ty * ty + tz * tz
+    lim = mus * abs(an)
+    k_t = 1.0
+    if tn2 > lim * lim:
+        k_t = lim / np.sqrt(tn2)
+    load = xi * depth * G[i, 6]
+    dyn = lamrho * vn * vn * G[i, 6]
+    fx = (an * nx + k_t * tx) * load - dyn * nx
+    fy = (an * ny + k_t * ty) * load - dyn * ny
+    fz = (an * nz + k_t * tz) * load - dyn * nz
+    return fx, fy, fz, T[j, 0] + ox - T[j, 18], T[j, 1] + oy - T[j, 19], T[j, 2] + oz - T[j, 20]
+
+
+@numba.njit(fastmath=True, cache=True, error_model="numpy")
+def _block(G, T, j, lo, hi, c1, c2, c3, xi, mus, lamrho, out, k):  # pragma: no cover - compiled
+    Fx = Fy = Fz = Tx = Ty = Tz = 0.0
+    for i in range(lo, hi):
+        fx, fy, fz, rx, ry, rz = _element_force(G, i, T, j, c1, c2, c3, xi, mus, lamrho)
+        Fx += fx
+        Fy += fy
+        Fz += fz
+        Tx += ry * fz - rz * fy
+        Ty += rz * fx - rx * fz
+        Tz += rx * fy - ry * fx
+    out[k, 0] = Fx
+    out[k, 1] = Fy
+    out[k, 2] = Fz
+    out[k, 3] = Tx
+    out[k, 4] = Ty
+    out[k, 5] = Tz
+
+
+@numba.njit(fastmath=True, cache=True, error_model="numpy")
+def _wrench_serial(G, T, C, prm, out):  # pragma: no cover - compiled
+    """Net wrench of every pose, serial. G (n, 7) body; T (S, 22) poses; C (3, 20) coefficients;
+    prm (3,) xi_n, mu_surf, lambda rho; out (S, 6)."""
+    n = G.shape[0]
+    for j in range(T.shape[0]):
+        _block(G, T, j, 0, n, C[0], C[1], C[2], prm[0], prm[1], prm[2], out, j)
+
+
+@numba.njit(parallel=True, fastmath=True, cache=True, error_model="numpy")
+def _wrench_parallel(G, T, C, prm, nblk, part):  # pragma: no cover - compiled
+    """Parallel over poses x element blocks; part (S * nblk, 6) partial sums."""
+    n = G.shape[0]
+    S = T.shape[0]
+    size = (n + nblk - 1) // nblk
+    for k in numba.prange(S * nblk):
+        j = k // nblk
+        b = k - j * nblk
+        lo = b * size
+        hi = min(n, lo + size)
+        _block(G, T, j, lo, hi, C[0], C[1], C[2], prm[0], prm[1], prm[2], part, k)
+
+
+def _params(medium: Medium3D, dynamic_lambda: float | None) -> np.ndarray:
+    return np.array([medium.xi_n, medium.mu_surf,
+                     (dynamic_lambda or 0.0) * medium.bulk_density], dtype=float)
+
+
+def run_kernel(G: np.ndarray, T: np.ndarray, C: np.ndarray, prm: np.ndarray,
+               parallel: bool | None = None) -> np.ndarray:
+    """Net wrenches (S, 6) from packed arrays. ``parallel=None`` chooses by the work size
+    (poses x elements >= :data:`PARALLEL_MIN_WORK`)."""
+    S, n = T.shape[0], G.shape[0]
+    if parallel is None:
+        parallel = S * n >= PARALLEL_MIN_WORK
+    if not parallel:
+        out = np.empty((S, 6))
+        _wrench_serial(G, T, C, prm, out)
+        return out
+    threads = numba.get_num_threads()
+    nblk = max(1, min(-(-2 * threads // S), max(1, n // 256)))  # enough blocks for all threads
+    part = np.empty((S * nblk, 6))
+    _wrench_parallel(G, T, C, prm, nblk, part)
+    return part.reshape(S, nblk, 6).sum(1)
+
+
+def wrench_batch(body: Body, position, quaternion, velocity, angular_velocity, medium: Medium3D,
+                 surface=0.0, point=None, dynamic_lambda: float | None = None,
+                 coef: np.ndarray | None = None, parallel: bool | None = None) -> np.ndarray:
+    """Net wrench of ``body`` at S poses: array (S, 6) of Fx, Fy, Fz (N), Tx, Ty, Tz (N m).
+
+    position (S, 3) m; quaternion (S, 4) unit (w, x, y, z), body to world; velocity (S, 3) m/s
+    of the body-frame origin; angular_velocity (S, 3) rad/s (world frame); any of them may be
+    a single (3,) / (4,) row for all steps. ``surface``: free-surface height, m (scalar or
+    (S,)). ``point``: torque reference point(s) (3,) or (S, 3) m in the world frame; default
+    the body-frame origin at each step. ``dynamic_lambda``: add the dynamic-RFT inertial term
+    with this lambda (None: quasi-static). ``parallel``: force the threading (None: by size).
+    """
+    X, q, V, W, P, h = _steps(position, quaternion, velocity, angular_velocity, point, surface)
+    C = coefficients() if coef is None else np.ascontiguousarray(coef, float)
+    return run_kernel(body.packed(), pose_table(X, q, V, W, P, h), C,
+                      _params(medium, dynamic_lambda), parallel)
+
+
+def wrench(body: Body, position, quaternion, velocity, angular_velocity, medium: Medium3D,
+           surface: float = 0.0, point=None, dynamic_lambda: float | None = None) -> np.ndarray:
+    """Net wrench (6,) of one pose: Fx, Fy, Fz (N), Tx, Ty, Tz (N m) about ``point`` (default
+    the body-frame origin). Arguments as :func:`wrench_batch` with single rows."""
+    return wrench_batch(body, position, quaternion, velocity, angular_velocity, medium, surface,
+                        point, dynamic_lambda)[0]
+
+
+class Evaluator:
+    """A fast single-pose wrench for physics-engine steps: inputs are checked once here, and
+    :meth:`__call__` only packs the pose and runs the serial compiled kernel.
+
+    ``Evaluator(body, medium)(X, q, V, W, surface=0.0, point=None) -> (6,)`` (SI, q = w, x, y, z
+    unit: not re-checked per call beyond a norm test)."""
+
+    def __init__(self, body: Body, medium: Medium3D, dynamic_lambda: float | None = None,
+                 coef: np.ndarray | None = None):
+        self.body = body
+        self.medium = medium
+        self._G = body.packed()
+        self._C = coefficients() if coef is None else np.ascontiguousarray(coef, float)
+        self._prm = _params(medium, dynamic_lambda)
+        self._T = np.empty((1, POSE_COLUMNS))
+        self._out = np.empty((1, 6))
+
+    def __call__(self, X, q, V, W, surface: float = 0.0, point=None) -> np.ndarray:
+        q = np.asarray(q, float)
+        nq = q @ q
+        if abs(nq - 1.0) > 2 * QUAT_TOL:
+            check_quaternions(q)
+        T = self._T
+        T[0, 0:3] = X
+        T[0, 3:12] = rotation_matrices(q).ravel()
+        T[0, 12:15] = V
+        T[0, 15:18] = W
+        T[0, 18:21] = X if point is None else point
+        T[0, 21] = surface
+        _wrench_serial(self._G, T, self._C, self._prm, self._out)
+        return self._out[0].copy()
