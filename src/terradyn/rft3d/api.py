@@ -44,8 +44,12 @@ def compute(body: Body, motion, medium, model: str = "agarwal", surface: float =
         return w, p, None
     from .treers import treers_elements
 
+    from ..media import MEDIA
+
+    rho = (MEDIA[medium].bulk_density if isinstance(medium, str) and medium in MEDIA
+           else getattr(medium, "bulk_density", None))
     el = treers_elements(body, p, stress_model if stress_model is not None else medium, surface,
-                         point, dynamic_lambda, surface_correction)
+                         point, dynamic_lambda, surface_correction, bulk_density=rho)
     return el["wrench"], p, (el if elements else None)
 
 

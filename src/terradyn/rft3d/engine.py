@@ -88,21 +88,12 @@ def _steps(position, quaternion, velocity, angular_velocity, point, surface):
 # ------------------------------------------------------------------------------------------
 # NumPy reference: every per-element quantity
 # ------------------------------------------------------------------------------------------
-def element_tractions(body: Body, position, quaternion, velocity, angular_velocity,
-                      medium: Medium3D, surface=0.0, point=None, dynamic_lambda: float | None = None,
-                      surface_correction=None, coef: np.ndarray | None = None) -> dict:
-    """Per-element 3D-RFT result for S poses (NumPy).
-
-    Inputs as :func:`wrench_batch` (single poses broadcast). ``surface_correction``: optional
-    hook ``f(r, v) -> delta_h`` with world element positions r and velocities v (S, n, 3) giving
-    delta_h (S, n) in m; the depth used is that of z~ = z + delta_h (Agarwal 2021), i.e.
-    ``max(surface - z - delta_h, 0)``.
-
-    Returns a dict of arrays: ``traction`` (S, n, 3) N/m^2 (force per element area on the body),
-    ``force`` (S, n, 3) N, ``r`` (S, n, 3) m world centroids, ``v`` (S, n, 3) m/s,
-    ``normal`` (S, n, 3), ``depth`` (S, n) m, ``active`` (S, n) bool, and the net ``wrench``
-    (S, 6): Fx, Fy, Fz (N), Tx, Ty, Tz (N m) about ``point``.
-    """
+def element_kinematics(body: Body, position, quaternion, velocity, angular_velocity, surface=0.0,
+                       point=None, surface_correction=None) -> dict:
+    """World-frame kinematics of every element at S poses (NumPy): ``r`` centroids (S, n, 3) m,
+    ``v`` velocities (S, n, 3) m/s, ``normal`` (S, n, 3), ``depth`` (S, n) m (after the
+    surface correction, clipped at 0), ``vn`` = n . v (S, n), ``vhat`` unit directions,
+    ``active`` (S, n) (submerged, moving, leading), ``point`` (S, 3) torque points."""
     X, q, V, W, P, h = _steps(position, quaternion, velocity, angular_velocity, point, surface)
     R = rotation_matrices(q)
     off = np.einsum("sij,nj->sni", R, body.centroids)
@@ -120,18 +111,53 @@ def element_tractions(body: Body, position, quaternion, velocity, angular_veloci
     vn = np.einsum("snk,snk->sn", n, v)
     active = (depth > 0) & (speed > REST_SPEED) & (vn >= 0)
     vhat = v / np.maximum(speed, REST_SPEED)[..., None]
+    return {"r": r, "v": v, "normal": n, "depth": depth, "vn": vn, "vhat": vhat,
+            "active": active, "point": P}
+
+
+def net_of(body: Body, kin: dict, traction: np.ndarray) -> dict:
+    """Element forces, net force and torque from tractions (S, n, 3) N/m^2: the dict of
+    :func:`element_tractions`."""
+    force = traction * body.areas[None, :, None]
+    F = force.sum(1)
+    T = np.cross(kin["r"] - kin["point"][:, None, :], force).sum(1)
+    return {"traction": traction, "force": force, "r": kin["r"], "v": kin["v"],
+            "normal": kin["normal"], "depth": kin["depth"], "active": kin["active"],
+            "wrench": np.concatenate([F, T], axis=1)}
+
+
+def dynamic_traction(kin: dict, lamrho: float) -> np.ndarray:
+    """Dynamic-RFT inertial traction -n lambda rho (n . v)^2 on active elements, (S, n, 3)."""
+    return -kin["normal"] * (lamrho * np.where(kin["active"], kin["vn"], 0.0) ** 2)[..., None]
+
+
+def element_tractions(body: Body, position, quaternion, velocity, angular_velocity,
+                      medium: Medium3D, surface=0.0, point=None, dynamic_lambda: float | None = None,
+                      surface_correction=None, coef: np.ndarray | None = None) -> dict:
+    """Per-element 3D-RFT result for S poses (NumPy).
+
+    Inputs as :func:`wrench_batch` (single poses broadcast). ``surface_correction``: optional
+    hook ``f(r, v) -> delta_h`` with world element positions r and velocities v (S, n, 3) giving
+    delta_h (S, n) in m; the depth used is that of z~ = z + delta_h (Agarwal 2021), i.e.
+    ``max(surface - z - delta_h, 0)``.
+
+    Returns a dict of arrays: ``traction`` (S, n, 3) N/m^2 (force per element area on the body),
+    ``force`` (S, n, 3) N, ``r`` (S, n, 3) m world centroids, ``v`` (S, n, 3) m/s,
+    ``normal`` (S, n, 3), ``depth`` (S, n) m, ``active`` (S, n) bool, and the net ``wrench``
+    (S, 6): Fx, Fy, Fz (N), Tx, Ty, Tz (N m) about ``point``.
+    """
+    k = element_kinematics(body, position, quaternion, velocity, angular_velocity, surface,
+                           point, surface_correction)
+    r, v, n, depth, vn, vhat, active, P = (k[x] for x in ("r", "v", "normal", "depth", "vn", "vhat",
+                                                            "active", "point"))
     t = np.zeros_like(r)
     if active.any():
         a = generic_alpha(n[active], vhat[active], coefficients() if coef is None else coef)
         a = medium.xi_n * cap_tangential(a, n[active], medium.mu_surf)
         t[active] = a * depth[active][:, None]
-        if dynamic_lambda:
-            t[active] -= n[active] * (dynamic_lambda * medium.bulk_density * vn[active] ** 2)[:, None]
-    force = t * body.areas[None, :, None]
-    F = force.sum(1)
-    T = np.cross(r - P[:, None, :], force).sum(1)
-    return {"traction": t, "force": force, "r": r, "v": v, "normal": n, "depth": depth,
-            "active": active, "wrench": np.concatenate([F, T], axis=1)}
+    if dynamic_lambda:
+        t += dynamic_traction(k, dynamic_lambda * medium.bulk_density)
+    return net_of(body, k, t)
 
 
 # ------------------------------------------------------------------------------------------
