@@ -42,10 +42,10 @@ class Body:
         return self.normals * self.areas[:, None]
 
     def packed(self) -> np.ndarray:
-        """(n, 7) float64 array cx, cy, cz, nx, ny, nz, area for the compiled kernels (cached)."""
+        """(7, n) float64 rows cx, cy, cz, nx, ny, nz, area for the compiled kernels (cached)."""
         p = self.__dict__.get("_packed")
         if p is None:
-            p = np.ascontiguousarray(np.column_stack([self.centroids, self.normals, self.areas]))
+            p = np.ascontiguousarray(np.vstack([self.centroids.T, self.normals.T, self.areas]))
             self.__dict__["_packed"] = p
         return p
 

@@ -180,69 +180,78 @@ def pose_table(X, q, V, W, P, h) -> np.ndarray:
     return T
 
 
-@numba.njit(fastmath=True, inline="always", error_model="numpy")
-def _element_force(G, i, T, j, c1, c2, c3, xi, mus, lamrho):  # pragma: no cover - compiled
-    """Force (N) on element i at pose j and its world offset from the torque point."""
-    bx, by, bz = G[i, 0], G[i, 1], G[i, 2]
-    ox = T[j, 3] * bx + T[j, 4] * by + T[j, 5] * bz
-    oy = T[j, 6] * bx + T[j, 7] * by + T[j, 8] * bz
-    oz = T[j, 9] * bx + T[j, 10] * by + T[j, 11] * bz
-    depth = T[j, 21] - T[j, 2] - oz
-    zero = 0.0
-    if depth <= zero:
-        return zero, zero, zero, zero, zero, zero
-    wx, wy, wz = T[j, 15], T[j, 16], T[j, 17]
-    vx = T[j, 12] + wy * oz - wz * oy
-    vy = T[j, 13] + wz * ox - wx * oz
-    vz = T[j, 14] + wx * oy - wy * ox
-    ax_, ay_, az_ = G[i, 3], G[i, 4], G[i, 5]
-    nx = T[j, 3] * ax_ + T[j, 4] * ay_ + T[j, 5] * az_
-    ny = T[j, 6] * ax_ + T[j, 7] * ay_ + T[j, 8] * az_
-    nz = T[j, 9] * ax_ + T[j, 10] * ay_ + T[j, 11] * az_
-    vn = nx * vx + ny * vy + nz * vz
-    v2 = vx * vx + vy * vy + vz * vz
-    if vn < zero or v2 <= 1e-24:
-        return zero, zero, zero, zero, zero, zero
-    inv = 1.0 / np.sqrt(v2)
-    ux, uy, uz = vx * inv, vy * inv, vz * inv
-    s = 1.0 if nz >= zero else -1.0
-    x1 = -uz
-    x2 = abs(nz)
-    x3 = -s * vn * inv
-    x11, x22, x33 = x1 * x1, x2 * x2, x3 * x3
-    m = (1.0, x1, x2, x3, x11, x22, x33, x1 * x2, x2 * x3, x3 * x1, x11 * x1, x22 * x2, x33 * x3,
-         x1 * x22, x2 * x11, x2 * x33, x3 * x22, x3 * x11, x1 * x33, x1 * x2 * x3)
-    f1 = zero
-    f2 = zero
-    f3 = zero
-    for k in range(20):
-        f1 += c1[k] * m[k]
-        f2 += c2[k] * m[k]
-        f3 += c3[k] * m[k]
-    g1 = -s * f1
-    gx = g1 * nx + f2 * ux
-    gy = g1 * ny + f2 * uy
-    gz = g1 * nz + f2 * uz - f3
-    an = gx * nx + gy * ny + gz * nz  # normal part: an n; tangential part g - an n, capped
-    tx, ty, tz = gx - an * nx, gy - an * ny, gz - an * nz
-    tn2 = tx * tx + ty * ty + tz * tz
-    lim = mus * abs(an)
-    k_t = 1.0
-    if tn2 > lim * lim:
-        k_t = lim / np.sqrt(tn2)
-    load = xi * depth * G[i, 6]
-    dyn = lamrho * vn * vn * G[i, 6]
-    fx = (an * nx + k_t * tx) * load - dyn * nx
-    fy = (an * ny + k_t * ty) * load - dyn * ny
-    fz = (an * nz + k_t * tz) * load - dyn * nz
-    return fx, fy, fz, T[j, 0] + ox - T[j, 18], T[j, 1] + oy - T[j, 19], T[j, 2] + oz - T[j, 20]
-
-
 @numba.njit(fastmath=True, cache=True, error_model="numpy")
 def _block(G, T, j, lo, hi, c1, c2, c3, xi, mus, lamrho, out, k):  # pragma: no cover - compiled
+    """Sum of the wrenches of elements lo..hi at pose j into out[k] (Fx, Fy, Fz, Tx, Ty, Tz).
+
+    G (7, n) body data as rows cx, cy, cz, nx, ny, nz, area (struct of arrays); T (S, 22)
+    poses. Written without branches (a mask multiplies each element's force) and with the
+    cubic fits unrolled so that the element loop compiles to SIMD instructions."""
+    r00, r01, r02 = T[j, 3], T[j, 4], T[j, 5]
+    r10, r11, r12 = T[j, 6], T[j, 7], T[j, 8]
+    r20, r21, r22 = T[j, 9], T[j, 10], T[j, 11]
+    Xx, Xy, Xz = T[j, 0], T[j, 1], T[j, 2]
+    Vx, Vy, Vz = T[j, 12], T[j, 13], T[j, 14]
+    wx, wy, wz = T[j, 15], T[j, 16], T[j, 17]
+    px, py, pz = Xx - T[j, 18], Xy - T[j, 19], Xz - T[j, 20]  # origin relative to the torque point
+    h0 = T[j, 21] - Xz
     Fx = Fy = Fz = Tx = Ty = Tz = 0.0
     for i in range(lo, hi):
-        fx, fy, fz, rx, ry, rz = _element_force(G, i, T, j, c1, c2, c3, xi, mus, lamrho)
+        bx, by, bz = G[0, i], G[1, i], G[2, i]
+        ox = r00 * bx + r01 * by + r02 * bz
+        oy = r10 * bx + r11 * by + r12 * bz
+        oz = r20 * bx + r21 * by + r22 * bz
+        depth = h0 - oz
+        gx, gy, gz = G[3, i], G[4, i], G[5, i]
+        nx = r00 * gx + r01 * gy + r02 * gz
+        ny = r10 * gx + r11 * gy + r12 * gz
+        nz = r20 * gx + r21 * gy + r22 * gz
+        vx = Vx + wy * oz - wz * oy
+        vy = Vy + wz * ox - wx * oz
+        vz = Vz + wx * oy - wy * ox
+        vn = nx * vx + ny * vy + nz * vz
+        v2 = vx * vx + vy * vy + vz * vz
+        on = (depth > 0.0) & (vn >= 0.0) & (v2 > 1e-24)
+        inv = 1.0 / np.sqrt(v2 + 1e-300)
+        s = 1.0 if nz >= 0.0 else -1.0
+        x1 = -vz * inv
+        x2 = abs(nz)
+        x3 = -s * vn * inv
+        x11 = x1 * x1
+        x22 = x2 * x2
+        x33 = x3 * x3
+        f1 = (c1[0] + c1[1] * x1 + c1[2] * x2 + c1[3] * x3 + c1[4] * x11 + c1[5] * x22
+                 + c1[6] * x33 + c1[7] * x1 * x2 + c1[8] * x2 * x3 + c1[9] * x3 * x1
+                 + c1[10] * x11 * x1 + c1[11] * x22 * x2 + c1[12] * x33 * x3
+                 + c1[13] * x1 * x22 + c1[14] * x2 * x11 + c1[15] * x2 * x33
+                 + c1[16] * x3 * x22 + c1[17] * x3 * x11 + c1[18] * x1 * x33
+                 + c1[19] * x1 * x2 * x3)
+        f2 = (c2[0] + c2[1] * x1 + c2[2] * x2 + c2[3] * x3 + c2[4] * x11 + c2[5] * x22
+                 + c2[6] * x33 + c2[7] * x1 * x2 + c2[8] * x2 * x3 + c2[9] * x3 * x1
+                 + c2[10] * x11 * x1 + c2[11] * x22 * x2 + c2[12] * x33 * x3
+                 + c2[13] * x1 * x22 + c2[14] * x2 * x11 + c2[15] * x2 * x33
+                 + c2[16] * x3 * x22 + c2[17] * x3 * x11 + c2[18] * x1 * x33
+                 + c2[19] * x1 * x2 * x3)
+        f3 = (c3[0] + c3[1] * x1 + c3[2] * x2 + c3[3] * x3 + c3[4] * x11 + c3[5] * x22
+                 + c3[6] * x33 + c3[7] * x1 * x2 + c3[8] * x2 * x3 + c3[9] * x3 * x1
+                 + c3[10] * x11 * x1 + c3[11] * x22 * x2 + c3[12] * x33 * x3
+                 + c3[13] * x1 * x22 + c3[14] * x2 * x11 + c3[15] * x2 * x33
+                 + c3[16] * x3 * x22 + c3[17] * x3 * x11 + c3[18] * x1 * x33
+                 + c3[19] * x1 * x2 * x3)
+        g1 = -s * f1
+        f2i = f2 * inv
+        ax_ = g1 * nx + f2i * vx
+        ay_ = g1 * ny + f2i * vy
+        az_ = g1 * nz + f2i * vz - f3
+        an = ax_ * nx + ay_ * ny + az_ * nz  # normal part an n; tangential part capped
+        tx, ty, tz = ax_ - an * nx, ay_ - an * ny, az_ - an * nz
+        kt = min(1.0, mus * abs(an) / np.sqrt(tx * tx + ty * ty + tz * tz + 1e-300))
+        load = (xi * max(depth, 0.0) * G[6, i]) if on else 0.0
+        dyn = (lamrho * vn * vn * G[6, i]) if on else 0.0
+        fx = (an * nx + kt * tx) * load - dyn * nx
+        fy = (an * ny + kt * ty) * load - dyn * ny
+        fz = (an * nz + kt * tz) * load - dyn * nz
+        rx, ry, rz = px + ox, py + oy, pz + oz
         Fx += fx
         Fy += fy
         Fz += fz
@@ -261,7 +270,7 @@ def _block(G, T, j, lo, hi, c1, c2, c3, xi, mus, lamrho, out, k):  # pragma: no 
 def _wrench_serial(G, T, C, prm, out):  # pragma: no cover - compiled
     """Net wrench of every pose, serial. G (n, 7) body; T (S, 22) poses; C (3, 20) coefficients;
     prm (3,) xi_n, mu_surf, lambda rho; out (S, 6)."""
-    n = G.shape[0]
+    n = G.shape[1]
     for j in range(T.shape[0]):
         _block(G, T, j, 0, n, C[0], C[1], C[2], prm[0], prm[1], prm[2], out, j)
 
@@ -269,7 +278,7 @@ def _wrench_serial(G, T, C, prm, out):  # pragma: no cover - compiled
 @numba.njit(parallel=True, fastmath=True, cache=True, error_model="numpy")
 def _wrench_parallel(G, T, C, prm, nblk, part):  # pragma: no cover - compiled
     """Parallel over poses x element blocks; part (S * nblk, 6) partial sums."""
-    n = G.shape[0]
+    n = G.shape[1]
     S = T.shape[0]
     size = (n + nblk - 1) // nblk
     for k in numba.prange(S * nblk):
@@ -278,6 +287,29 @@ def _wrench_parallel(G, T, C, prm, nblk, part):  # pragma: no cover - compiled
         lo = b * size
         hi = min(n, lo + size)
         _block(G, T, j, lo, hi, C[0], C[1], C[2], prm[0], prm[1], prm[2], part, k)
+
+
+@numba.njit(fastmath=True, cache=True, error_model="numpy")
+def _wrench_one(G, C, prm, X, q, V, W, P, h, T, out):  # pragma: no cover - compiled
+    """One pose from raw vectors (X, q w-x-y-z, V, W, P (3,), h scalar) into T (1, 22) and
+    out (1, 6): the per-step call of a physics engine, no NumPy temporaries."""
+    w, x, y, z = q[0], q[1], q[2], q[3]
+    T[0, 0], T[0, 1], T[0, 2] = X[0], X[1], X[2]
+    T[0, 3] = 1 - 2 * (y * y + z * z)
+    T[0, 4] = 2 * (x * y - w * z)
+    T[0, 5] = 2 * (x * z + w * y)
+    T[0, 6] = 2 * (x * y + w * z)
+    T[0, 7] = 1 - 2 * (x * x + z * z)
+    T[0, 8] = 2 * (y * z - w * x)
+    T[0, 9] = 2 * (x * z - w * y)
+    T[0, 10] = 2 * (y * z + w * x)
+    T[0, 11] = 1 - 2 * (x * x + y * y)
+    for k in range(3):
+        T[0, 12 + k] = V[k]
+        T[0, 15 + k] = W[k]
+        T[0, 18 + k] = P[k]
+    T[0, 21] = h
+    _block(G, T, 0, 0, G.shape[1], C[0], C[1], C[2], prm[0], prm[1], prm[2], out, 0)
 
 
 def _params(medium: Medium3D, dynamic_lambda: float | None) -> np.ndarray:
@@ -289,7 +321,7 @@ def run_kernel(G: np.ndarray, T: np.ndarray, C: np.ndarray, prm: np.ndarray,
                parallel: bool | None = None) -> np.ndarray:
     """Net wrenches (S, 6) from packed arrays. ``parallel=None`` chooses by the work size
     (poses x elements >= :data:`PARALLEL_MIN_WORK`)."""
-    S, n = T.shape[0], G.shape[0]
+    S, n = T.shape[0], G.shape[1]
     if parallel is None:
         parallel = S * n >= PARALLEL_MIN_WORK
     if not parallel:
@@ -347,16 +379,11 @@ class Evaluator:
         self._out = np.empty((1, 6))
 
     def __call__(self, X, q, V, W, surface: float = 0.0, point=None) -> np.ndarray:
-        q = np.asarray(q, float)
-        nq = q @ q
-        if abs(nq - 1.0) > 2 * QUAT_TOL:
+        X = np.asarray(X, dtype=float)
+        q = np.asarray(q, dtype=float)
+        if abs(q @ q - 1.0) > 2 * QUAT_TOL:
             check_quaternions(q)
-        T = self._T
-        T[0, 0:3] = X
-        T[0, 3:12] = rotation_matrices(q).ravel()
-        T[0, 12:15] = V
-        T[0, 15:18] = W
-        T[0, 18:21] = X if point is None else point
-        T[0, 21] = surface
-        _wrench_serial(self._G, T, self._C, self._prm, self._out)
+        _wrench_one(self._G, self._C, self._prm, X, q, np.asarray(V, dtype=float),
+                    np.asarray(W, dtype=float), X if point is None else np.asarray(point, dtype=float),
+                    float(surface), self._T, self._out)
         return self._out[0].copy()
