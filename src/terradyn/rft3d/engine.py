@@ -27,7 +27,7 @@ import numpy as np
 
 from ..errors import InputError, finite_array
 from .body import Body
-from .model import Medium3D, cap_tangential, coefficients, generic_alpha
+from .model import NZ_TIE, Medium3D, cap_tangential, coefficients, generic_alpha
 
 #: Speeds below this (m/s) count as "at rest": no RFT force.
 REST_SPEED = 1e-12
@@ -213,7 +213,7 @@ def _block(G, T, j, lo, hi, c1, c2, c3, xi, mus, lamrho, out, k):  # pragma: no 
         v2 = vx * vx + vy * vy + vz * vz
         on = (depth > 0.0) & (vn >= 0.0) & (v2 > 1e-24)
         inv = 1.0 / np.sqrt(v2 + 1e-300)
-        s = 1.0 if nz >= 0.0 else -1.0
+        s = 1.0 if nz >= NZ_TIE else -1.0
         x1 = -vz * inv
         x2 = abs(nz)
         x3 = -s * vn * inv

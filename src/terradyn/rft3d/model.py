@@ -69,6 +69,13 @@ DISPUTED = {"f2 x3 x2^2": (1, MONOMIALS.index("x3 x2^2")),
 ALTERNATIVES = {"f2 x3 x2^2": 0.18519, "f3 x2 x3^2": -0.20770}
 
 
+#: The fits are not continuous across vertical faces (n_z = 0, beta = +-90 deg: the two
+#: signs of n_z give f1 values ~20 % apart). Normals within this of horizontal count as
+#: n_z >= 0 (the published branch for n_z = 0), so a wall rotated with rounding errors of
+#: 1e-17 gets the same branch whatever the rounding.
+NZ_TIE = -1e-9
+
+
 def coefficients(variant: dict[str, float] | None = None) -> np.ndarray:
     """The (3, 20) coefficient table (rows f1, f2, f3). ``variant`` overrides disputed
     entries by name (keys of :data:`DISPUTED`)."""
@@ -94,7 +101,7 @@ def generic_alpha(n, vhat, coef: np.ndarray | None = None) -> np.ndarray:
     coef = coefficients() if coef is None else coef
     n = np.asarray(n, float)
     vhat = np.asarray(vhat, float)
-    s = np.where(n[..., 2] >= 0, 1.0, -1.0)
+    s = np.where(n[..., 2] >= NZ_TIE, 1.0, -1.0)
     x1 = -vhat[..., 2]
     x2 = np.abs(n[..., 2])
     x3 = -s * np.einsum("...k,...k->...", n, vhat)
@@ -154,7 +161,7 @@ XI_SOURCES = ("friction", "plate")
 
 
 def medium3d(name: str = "3 mm glass CP", mu_surf: float = DEFAULT_MU_SURF,
-             xi_from: str = "friction") -> Medium3D:
+             xi_from: str = "plate") -> Medium3D:
     """One of Li 2013's five media for 3D RFT.
 
     ``xi_from="friction"``: xi_n from the bulk density and mu_int = tan(repose angle) (Table S1);
@@ -190,3 +197,33 @@ def cap_tangential(a, n, mu_surf: float):
     k = np.minimum(1.0, mu_surf * np.linalg.norm(an, axis=-1, keepdims=True)
                    / np.maximum(tn, 1e-300))
     return an + k * at
+
+
+@dataclass(frozen=True, eq=False)
+class AgarwalPlanar:
+    """The 3D-RFT law restricted to the x-z plane as a 2D stress model
+    (``alpha(beta, gamma) -> (alpha_x, alpha_z)`` in N/m^3, Li 2013 conventions): a plate at
+    attack angle beta moving in direction gamma, its leading face's normal in the plane
+    (psi = 0). The 2D engine run with it is the exact 2D limit of :mod:`terradyn.rft3d` for a
+    thin body uniform across its width; its difference from Li's fits is "the fits'
+    difference" of the 2D reduction."""
+
+    medium: Medium3D
+    coef: np.ndarray | None = None
+
+    @property
+    def name(self) -> str:
+        return f"agarwal2023-planar ({self.medium.name})"
+
+    def alpha(self, beta, gamma):
+        b = np.asarray(beta, float)
+        g = np.asarray(gamma, float)
+        b, g = np.broadcast_arrays(b, g)
+        v = np.stack([np.cos(g), np.zeros_like(g), -np.sin(g)], -1)
+        n = np.stack([-np.sin(b), np.zeros_like(b), np.cos(b)], -1)
+        n = np.where((np.einsum("...k,...k->...", n, v) < 0)[..., None], -n, n)  # leading face
+        a = scaled_alpha(n, v, self.medium, self.coef)
+        return -a[..., 0], a[..., 2]
+
+    def describe(self) -> dict:
+        return {"kind": "agarwal2023-planar", "medium": self.medium.describe()}
