@@ -46,3 +46,306 @@ def test_horizontal_plate_pushed_down_closed_form():
 def test_unnormalised_quaternion_is_refused():
     with pytest.raises(InputError, match="unit quaternion"):
         r3.wrench(r3.sphere(), [0, 0, -0.02], [1, 0.1, 0, 0], [0, 0, -1], [0, 0, 0], MED)
+
+
+# ------------------------------------------------------------------------------------------
+# The two disputed coefficients (brief 7.1)
+# ------------------------------------------------------------------------------------------
+def _leading_sample(n_samples=20000, seed=3):
+    rng = np.random.default_rng(seed)
+    n = rng.normal(size=(n_samples, 3))
+    v = rng.normal(size=(n_samples, 3))
+    n /= np.linalg.norm(n, axis=1, keepdims=True)
+    v /= np.linalg.norm(v, axis=1, keepdims=True)
+    flip = np.einsum("ij,ij->i", n, v) < 0
+    n[flip] *= -1  # leading elements only
+    return n, v
+
+
+def test_settled_f3_entry_resists_motion_almost_everywhere():
+    """With f3 x2 x3^2 = -0.02730 the generic stress opposes the motion on all but ~0.4 % of
+    leading orientations (0.07 % of directions uniform on the sphere here, 0.7 % on a uniform
+    beta-gamma-psi grid); the other port's -0.20770 fails 15-20 times as often (1.2 %, 13 %)."""
+    n, v = _leading_sample()
+    chosen = np.mean(np.einsum("ij,ij->i", m3.generic_alpha(n, v), v) >= 0)
+    other = np.mean(np.einsum("ij,ij->i", m3.generic_alpha(n, v, m3.coefficients(
+        {"f3 x2 x3^2": m3.ALTERNATIVES["f3 x2 x3^2"]})), v) >= 0)
+    assert m3.coefficients()[m3.DISPUTED["f3 x2 x3^2"]] == -0.02730
+    assert chosen < 0.002
+    assert other > 0.01
+    assert other > 10 * chosen
+
+
+def test_settled_f3_entry_pulls_a_rising_plate_down_like_li2013():
+    """A buried horizontal plate pulled straight up: Li 2013 measured a downward force in all
+    five media; the chosen entry gives it, the alternative pushes the plate up."""
+    body = r3.plate()
+    up = ([0, 0, -0.05], [1, 0, 0, 0], [0, 0, 0.01], [0, 0, 0])
+    assert r3.wrench(body, *up, MED)[2] < 0
+    alt = m3.coefficients({"f3 x2 x3^2": m3.ALTERNATIVES["f3 x2 x3^2"]})
+    assert r3.wrench_batch(body, *up, MED, coef=alt)[0, 2] > 0
+    for name in ("poppy CP", "0.3 mm glass LP", "3 mm glass CP"):
+        assert r3.wrench(body, *up, r3.medium3d(name))[2] < 0
+
+
+def test_f2_entry_choice_changes_forces_by_less_than_0_5_percent():
+    rng = np.random.default_rng(7)
+    body = r3.sphere(subdivisions=2)
+    X, q, V, W = _random_poses(60, rng)
+    a = r3.wrench_batch(body, X, q, V, W, MED)
+    b = r3.wrench_batch(body, X, q, V, W, MED,
+                        coef=m3.coefficients({"f2 x3 x2^2": m3.ALTERNATIVES["f2 x3 x2^2"]}))
+    F = np.linalg.norm(a[:, :3], axis=1)
+    assert np.max(np.linalg.norm(a[:, :3] - b[:, :3], axis=1)[F > 0] / F[F > 0]) < 5e-3
+
+
+# ------------------------------------------------------------------------------------------
+# Symmetries, convergence, closed forms
+# ------------------------------------------------------------------------------------------
+def _scene(rng):
+    body = r3.foot_sole() if hasattr(r3, "foot_sole") else r3.box(0.05, 0.03, 0.01)
+    X = np.array([0.01, -0.02, -0.004])
+    q = r3.axis_angle_quat(np.array([0.3, -0.5, 0.8]) / np.linalg.norm([0.3, -0.5, 0.8]), 0.4)
+    V = np.array([0.05, 0.02, -0.03])
+    W = np.array([0.2, -0.4, 0.3])
+    return body, X, q, V, W
+
+
+@pytest.mark.parametrize("model", ["agarwal", "treers"])
+def test_invariance_under_rotation_about_the_vertical(model):
+    body, X, q, V, W = _scene(None)
+    poses = lambda X, q, V, W: r3.Poses(np.zeros(1), X[None], q[None], V[None], W[None])  # noqa: E731
+    med = MED if model == "agarwal" else "poppy LP"
+    w0, _, _ = r3.compute(body, _Fixed(poses(X, q, V, W)), med, model)
+    for phi in (0.7, 2.5):
+        Rz = r3.rotation_matrices(r3.axis_angle_quat([0, 0, 1.0], phi))
+        qz = r3.quat_multiply(r3.axis_angle_quat([0, 0, 1.0], phi), q)
+        w1, _, _ = r3.compute(body, _Fixed(poses(Rz @ X, qz, Rz @ V, Rz @ W)), med, model)
+        np.testing.assert_allclose(w1[0, :3], Rz @ w0[0, :3], atol=1e-9 * np.abs(w0).max())
+        np.testing.assert_allclose(w1[0, 3:], Rz @ w0[0, 3:], atol=1e-9 * np.abs(w0).max())
+
+
+class _Fixed:
+    def __init__(self, p):
+        self.p = p
+
+    def poses(self):
+        return self.p
+
+    def describe(self):
+        return {"kind": "fixed"}
+
+
+@pytest.mark.parametrize("model", ["agarwal", "treers"])
+def test_mirror_symmetry(model):
+    """Mirror the scene in y (body, pose and motion): Fy, Tx, Tz change sign, the rest stays."""
+    import trimesh
+
+    body, X, q, V, W = _scene(None)
+    R = r3.rotation_matrices(q)
+    M = np.diag([1.0, -1.0, 1.0])
+    world = trimesh.Trimesh(body.vertices @ R.T, body.faces, process=False)
+    mirrored = trimesh.Trimesh(body.vertices @ R.T @ M, body.faces[:, ::-1], process=False)
+    b0 = r3.from_trimesh(world)
+    b1 = r3.from_trimesh(mirrored)
+    med = MED if model == "agarwal" else "poppy LP"
+    one = lambda X, V, W: _Fixed(r3.Poses(np.zeros(1), X[None], np.array([[1.0, 0, 0, 0]]), V[None], W[None]))  # noqa: E731
+    w0 = r3.compute(b0, one(X, V, W), med, model)[0][0]
+    w1 = r3.compute(b1, one(M @ X, M @ V, -(M @ W)), med, model)[0][0]
+    expect = np.concatenate([M @ w0[:3], -(M @ w0[3:])])
+    np.testing.assert_allclose(w1, expect, atol=1e-9 * np.abs(w0).max())
+    assert abs(w0[1]) > 1e-3 * np.abs(w0[:3]).max()  # the scene is not trivially symmetric
+
+
+def test_mesh_refinement_converges_for_a_sphere():
+    """A sphere pushed down and sideways at depth: the net force converges as the icosphere is
+    refined (each change at most half the previous one)."""
+    F = []
+    for k in (1, 2, 3, 4):
+        w = r3.wrench(r3.sphere(0.02, k), [0, 0, -0.04], [1, 0, 0, 0], [0.03, 0, -0.04], [0, 0, 0], MED)
+        F.append(w[:3])
+    d = [np.linalg.norm(F[i + 1] - F[i]) for i in range(3)]
+    assert d[1] < 0.5 * d[0] and d[2] < 0.5 * d[1]
+    assert d[2] < 0.01 * np.linalg.norm(F[-1])
+
+
+def test_torque_point_moves_torque_by_r_cross_f():
+    body, X, q, V, W = _scene(None)
+    a = r3.wrench(body, X, q, V, W, MED)
+    P = np.array([0.1, 0.2, -0.3])
+    b = r3.wrench(body, X, q, V, W, MED, point=P)
+    np.testing.assert_allclose(b[:3], a[:3])
+    np.testing.assert_allclose(b[3:], a[3:] + np.cross(X - P, a[:3]), atol=1e-12)
+
+
+def test_treers_mode_accepts_every_2d_coefficient_set(tmp_path):
+    """Li's fits, the measured grids (any interpolator), generic x zeta, a user's grid."""
+    from terradyn.media import generic, packaged_tables, stress_model
+
+    body = r3.leg3d("c", n_along=30, n_width=2)
+    mot = r3.PlanarAs3D(__import__("terradyn").standard_rotation(n_theta=31))
+    tab = packaged_tables("cubic")["poppy LP"]
+    out = {}
+    for name, sm in (("fit", stress_model("poppy LP")), ("table", tab), ("generic", generic(0.248))):
+        ds = r3.simulate(body, mot, "poppy LP", model="treers", stress_model=sm)
+        out[name] = ds.Fz.values
+        assert ds.Fz.max() > 0.5
+    # fit, measured grid and generic x zeta describe the same medium: within 40 % at the peak
+    for name in ("table", "generic"):
+        assert out[name].max() == pytest.approx(out["fit"].max(), rel=0.4)
+
+
+# ------------------------------------------------------------------------------------------
+# Reduction to the 2D engine
+# ------------------------------------------------------------------------------------------
+@pytest.mark.parametrize("shape", ["flat", "c", "reverse-c"])
+def test_thin_3d_leg_reduces_to_the_2d_engine(shape):
+    """A leg uniform across its width rotating in its own plane: as its thickness goes to 0
+    the 3D result tends to the 2D engine's (Agarwal mode: with the planar restriction of the
+    same law; Treers mode: with Li's fit), the difference shrinking ~ with the thickness."""
+    import terradyn as td
+
+    mot = td.standard_rotation(n_theta=91)
+    med = r3.medium3d("poppy LP")
+    ref = {"agarwal": td.rft.simulate(td.make_leg(shape), mot, r3.AgarwalPlanar(med)),
+           "treers": td.rft.simulate(td.make_leg(shape), mot, td.FITS["poppy LP"])}
+    for model, m in (("agarwal", med), ("treers", "poppy LP")):
+        errs = []
+        for t in (1e-3, 2e-4):
+            ds = r3.simulate(r3.leg3d(shape, thickness=t, n_along=100, n_width=1),
+                             r3.PlanarAs3D(mot), m, model=model)
+            s2 = ref[model]
+            scale = max(np.abs(s2.Fz).max(), np.abs(s2.Fx).max())
+            errs.append(max(np.abs(ds.Fz.values - s2.Fz.values).max(),
+                            np.abs(ds.Fx.values - s2.Fx.values).max()) / scale)
+            np.testing.assert_allclose(-ds.Ty.values, s2.torque.values,
+                                       atol=(0.1 if t > 5e-4 else 0.03) * np.abs(s2.torque).max())
+            assert np.abs(ds.Fy).max() < 1e-6 * scale
+        assert errs[1] < 0.015
+        assert errs[1] < 0.4 * errs[0]
+
+
+def test_standard_3d_legs_against_li2013_measurements():
+    """The three legs as 3D bodies (0.64 cm thick) against Li 2013 Fig. S5 (two media):
+    Treers mode stays as close to the measurements as the 2D engine it extends, and Agarwal
+    3D-RFT (xi_n from the measured plate) is closer than the 2D engine on average, mostly
+    through the reverse-C lift the 2D fits overestimate (docs/rft3d.md has the table)."""
+    from terradyn.rft3d import studies
+
+    df = studies.legs_vs_experiment(n_theta=136)
+    mean = df.groupby("model").rms_frac.mean()
+    assert mean["3D Treers mode, Li fit"] < 1.2 * mean["2D engine, Li fit"]
+    assert mean["3D Agarwal, xi_n from plate"] < mean["2D engine, Li fit"]
+    peaks = df[df.model == "3D Agarwal, xi_n from plate"]
+    ratio = peaks.peak_model_N / peaks.peak_measured_N
+    assert ratio.between(0.6, 2.0).all()
+    # xi_n from tan(repose angle) over-predicts these media several-fold (reported, not used)
+    assert mean["3D Agarwal, xi_n from friction"] > 1.0
+
+
+# ------------------------------------------------------------------------------------------
+# Dynamic RFT
+# ------------------------------------------------------------------------------------------
+def test_dynamic_term_vanishes_at_low_speed_and_scales_as_v_squared():
+    body = r3.leg3d("flat", n_along=20, n_width=2)
+    X, q = [0, 0, -0.01], [1, 0, 0, 0]
+    d = np.array([1.0, 0.0, -0.3]) / np.linalg.norm([1.0, 0.0, -0.3])
+    extra = []
+    for v in (1e-3, 0.5, 1.0, 2.0):
+        qs = r3.wrench(body, X, q, v * d, [0, 0, 0], MED)
+        dy = r3.wrench(body, X, q, v * d, [0, 0, 0], MED, dynamic_lambda=1.1)
+        extra.append(dy[:3] - qs[:3])
+        if v == 1e-3:
+            assert np.linalg.norm(extra[-1]) < 1e-5 * np.linalg.norm(qs[:3])
+    extra = np.array(extra[1:])
+    assert np.linalg.norm(extra[0]) > 0.01 * np.linalg.norm(qs[:3]) / 4  # not trivially zero
+    np.testing.assert_allclose(extra[1], 4.0 * extra[0], atol=1e-12, rtol=1e-9)
+    np.testing.assert_allclose(extra[2], 16.0 * extra[0], atol=1e-12, rtol=1e-9)
+
+
+def test_plate_drag_form_closed_form():
+    """A vertical plate dragged broadside at depth: F = K |z| + lambda rho A v^2 exactly, with
+    K from the quasi-static law (Agarwal et al. 2021's plate-drag form)."""
+    L, B, t, depth = 0.0381, 0.0254, 0.001, 0.05
+    body = r3.box(t, B, L, max_edge=0.004)
+    lam, v = 1.1, 0.8
+    X = [0, 0, -depth]
+    F0 = r3.wrench(body, X, [1, 0, 0, 0], [v, 0, 0], [0, 0, 0], MED)[0]
+    F1 = r3.wrench(body, X, [1, 0, 0, 0], [v, 0, 0], [0, 0, 0], MED, dynamic_lambda=lam)[0]
+    assert F1 - F0 == pytest.approx(-lam * MED.bulk_density * (B * L) * v ** 2, rel=1e-9)
+    Fslow = r3.wrench(body, X, [1, 0, 0, 0], [1e-3, 0, 0], [0, 0, 0], MED)[0]
+    assert F0 == pytest.approx(Fslow, rel=1e-12)  # K |z|: rate independent
+
+
+def test_2d_engine_dynamic_option():
+    import terradyn as td
+    from terradyn.rft.engine import net_forces
+
+    leg = td.flat_leg()
+    rho = td.MEDIA["poppy LP"].bulk_density
+    res = {}
+    for w in (0.2, 20.0, 40.0):
+        traj = td.Rotation(w, 0.02, -1.0, 1.0, 41).trajectory()
+        res[w] = (np.array(net_forces(leg, traj, td.FITS["poppy LP"])),
+                  np.array(net_forces(leg, traj, td.FITS["poppy LP"], dynamic=(1.1, rho))))
+    slow = res[0.2]
+    assert np.abs(slow[1] - slow[0]).max() < 1e-3 * np.abs(slow[0]).max()
+    d20 = res[20.0][1] - res[20.0][0]
+    d40 = res[40.0][1] - res[40.0][0]
+    np.testing.assert_allclose(d40, 4 * d20, atol=1e-9 * np.abs(d40).max())
+    assert np.abs(d20).max() > 0.01 * np.abs(res[20.0][0]).max()
+
+
+def test_speed_onset_near_the_froude_scale():
+    from terradyn.rft3d import studies
+
+    df = studies.speed_onset(np.geomspace(0.5, 100, 12))
+    on = df.attrs["onset"]
+    g = df.attrs["froude_omega_rad_s"]
+    for shape in ("flat", "c", "reverse-c"):
+        assert on[shape] is not None and 0.2 * g < on[shape] < 3 * g
+        slow = df[(df.leg == shape)].peak_ratio.iloc[0]
+        assert slow - 1 < 1e-3
+
+
+# ------------------------------------------------------------------------------------------
+# Motions
+# ------------------------------------------------------------------------------------------
+def test_axis_rotation_velocities_are_exact_and_match_a_sampled_motion():
+    rot = r3.AxisRotation(axis=(0.2, 1.0, 0.3), center=(0.01, 0.0, 0.02), omega=0.7,
+                          angle_start=-1.0, angle_end=1.0, n=401, position0=(0.03, -0.01, 0.0))
+    p = rot.poses()
+    sampled = r3.RigidMotion(p.time, p.position, p.quaternion).poses()
+    np.testing.assert_allclose(sampled.velocity[5:-5], p.velocity[5:-5], atol=1e-8)
+    np.testing.assert_allclose(sampled.angular_velocity[5:-5], p.angular_velocity[5:-5], atol=1e-8)
+    np.testing.assert_allclose(np.linalg.norm(p.angular_velocity, axis=1), 0.7)
+
+
+# ------------------------------------------------------------------------------------------
+# Bad input
+# ------------------------------------------------------------------------------------------
+def test_bad_meshes_are_named():
+    import trimesh
+
+    box = trimesh.creation.box(extents=(0.02, 0.02, 0.02))
+    with pytest.raises(InputError, match="empty"):
+        r3.from_trimesh(trimesh.Trimesh(np.zeros((0, 3)), np.zeros((0, 3), int)))
+    v = box.vertices.copy()
+    v[3, 1] = np.nan
+    with pytest.raises(InputError, match="not finite"):
+        r3.from_trimesh(trimesh.Trimesh(v, box.faces, process=False))
+    f = box.faces.copy()
+    f[0] = [f[0, 0], f[0, 0], f[0, 1]]
+    with pytest.raises(InputError, match="degenerate"):
+        r3.from_trimesh(trimesh.Trimesh(box.vertices, f, process=False))
+    f = box.faces.copy()
+    f[0] = f[0, ::-1]
+    with pytest.raises(InputError, match="inconsistent normals"):
+        r3.from_trimesh(trimesh.Trimesh(box.vertices, f, process=False))
+    with pytest.raises(InputError, match="not closed"):
+        r3.from_trimesh(trimesh.Trimesh(box.vertices, box.faces[:-1], process=False))
+    with pytest.raises(InputError, match="inward"):
+        r3.from_trimesh(trimesh.Trimesh(box.vertices, box.faces[:, ::-1], process=False))
+    open_sheet = r3.from_trimesh(trimesh.Trimesh(box.vertices, box.faces[:-2], process=False),
+                                 require_closed=False)
+    assert len(open_sheet) == 10

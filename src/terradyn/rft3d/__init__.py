@@ -39,8 +39,9 @@ from .api import MODELS, compute, element_frame, simulate, wrench_series
 from .body import Body, box, cylinder, from_trimesh, plate, read_mesh, sphere
 from .engine import (Evaluator, check_quaternions, element_tractions, rotation_matrices, wrench,
                      wrench_batch)
-from .model import (AGARWAL2023, Medium3D, agarwal_medium, coefficients, generic_alpha, medium3d,
+from .model import (AGARWAL2023, AgarwalPlanar, Medium3D, agarwal_medium, coefficients, generic_alpha, medium3d,
                     scaled_alpha, xi_n)
+from .presets import PRESETS, foot_sole, leg3d, preset, standard_legs, wheel
 from .motion import (AxisRotation, PlanarAs3D, Poses, RigidMotion, axis_angle_quat, planar_poses,
                      quat_multiply, read_motion3d_csv)
 
@@ -50,5 +51,6 @@ __all__ = [
     "element_tractions", "rotation_matrices", "wrench", "wrench_batch", "AGARWAL2023", "Medium3D",
     "agarwal_medium", "coefficients", "generic_alpha", "medium3d", "scaled_alpha", "xi_n",
     "AxisRotation", "PlanarAs3D", "Poses", "RigidMotion", "axis_angle_quat", "planar_poses",
-    "quat_multiply", "read_motion3d_csv",
+    "quat_multiply", "read_motion3d_csv", "AgarwalPlanar", "PRESETS", "foot_sole", "leg3d",
+    "preset", "standard_legs", "wheel",
 ]

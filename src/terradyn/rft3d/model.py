@@ -27,12 +27,14 @@ Coefficients (the 20 monomials in the order of :data:`MONOMIALS`). Public ports 
 disagree in two entries; the choice made here, and why (tests/test_rft3d.py checks both):
 
 * f3, term x2 x3^2: **-0.02730** (the other port: -0.20770). With -0.02730 the generic stress
-  resists the motion (alpha . v^ < 0) on all but ~0.4 % of leading orientations (~6 % with
-  -0.20770), and a horizontal plate pulled straight up is pulled down, as Li et al. (2013)
-  measured in all five of their media; -0.20770 pushes it up.
-* f2, term x3 x2^2: **0.18589** (the other: 0.18519). The difference changes any force by
-  < 0.2 % (tested), so the model's constraints cannot tell them apart; 0.18589 is the value
-  carried together with the settled f3 entry.
+  resists the motion (alpha . v^ < 0) on all but 0.07 % of leading (n, v) pairs uniform on
+  the sphere (0.7 % of a uniform beta-gamma-psi grid); with -0.20770 on 1.2 % (13 %). And a
+  horizontal plate pulled straight up is pulled down, as Li et al. (2013) measured in all
+  five of their media; -0.20770 pushes it up.
+* f2, term x3 x2^2: **0.18589** (the other: 0.18519). The difference (7e-4 on a term bounded
+  by 1) changes net forces by 0.3 % at most in the tests (< 0.5 % asserted), so the model's
+  constraints cannot tell them apart; 0.18589 is the value carried together with the
+  settled f3 entry.
 """
 from __future__ import annotations
 
