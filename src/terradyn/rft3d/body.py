@@ -140,7 +140,11 @@ def read_mesh(path: str | Path, units: str = "m", require_closed: bool = True,
         raise InputError("mesh", f"{path}: cannot be read as a mesh ({type(e).__name__}: {e})") from None
     v = np.asarray(getattr(tm, "vertices", np.zeros((0, 3))), float) * MESH_UNITS[units]
     f = np.asarray(getattr(tm, "faces", np.zeros((0, 3), int)))
-    tm2 = trimesh.Trimesh(v, f, process=False) if len(f) else type("Empty", (), {"vertices": v, "faces": f})()
+    if len(f) and np.isfinite(v).all():
+        tm2 = trimesh.Trimesh(v, f, process=False)
+        tm2.merge_vertices()  # STL stores each triangle's corners separately: share them
+    else:  # empty or non-finite: let the checks of from_trimesh name the problem
+        tm2 = type("Raw", (), {"vertices": v, "faces": f})()
     body = from_trimesh(tm2, path.stem, require_closed, field=f"mesh {path.name}",
                         info={"file": str(path), "file_units": units})
     return body.refined(max_edge) if max_edge else body
