@@ -82,9 +82,12 @@ def measure(load: int) -> dict:
     X, q, V, W = poses(S, rng)
     active = r3.element_tractions(foot, X[:100], q[:100], V[:100], W[:100], med)["active"].mean()
     batch = {}
-    for name, par in (("compiled, work-size choice", None), ("compiled serial", False),
-                      ("compiled parallel", True)):
-        t = best(lambda: r3.wrench_batch(foot, X, q, V, W, med, parallel=par))
+    for name, par, dt in (("compiled, work-size choice", None, np.float64),
+                          ("compiled serial", False, np.float64),
+                          ("compiled parallel", True, np.float64),
+                          ("compiled float32, work-size choice", None, np.float32),
+                          ("compiled float32 serial", False, np.float32)):
+        t = best(lambda: r3.wrench_batch(foot, X, q, V, W, med, parallel=par, dtype=dt))
         batch[name] = S * n / t
     Sn = 50 if QUICK else 200
     t = best(lambda: r3.element_tractions(foot, X[:Sn], q[:Sn], V[:Sn], W[:Sn], med), 3)
@@ -141,7 +144,7 @@ def main() -> None:
         print(f"batch, foot {len(foot_sole())} triangles x {r['batch_poses']} poses "
               f"({100 * r['batch_active_fraction']:.0f} % of elements in contact):", file=sys.stderr)
         for k, v in b.items():
-            print(f"  {k:34s} {v / 1e6:9.1f} M element evaluations/s  ({v / base:6.1f} x NumPy)",
+            print(f"  {k:36s} {v / 1e6:9.1f} M element evaluations/s  ({v / base:6.1f} x NumPy)",
                   file=sys.stderr)
         for title, key in (("foot, one pose", "foot_single_pose"),
                            ("2D standard curve (c-leg, 100 el x 271 angles)", "standard_curve_2d")):

@@ -78,10 +78,16 @@ ALTERNATIVES = {"f2 x3 x2^2": 0.18519, "f3 x2 x3^2": -0.20770}
 NZ_TIE = -1e-9
 
 
+_TABLE = np.array([_C1, _C2, _C3], dtype=float)
+_TABLE.flags.writeable = False
+
+
 def coefficients(variant: dict[str, float] | None = None) -> np.ndarray:
-    """The (3, 20) coefficient table (rows f1, f2, f3). ``variant`` overrides disputed
-    entries by name (keys of :data:`DISPUTED`)."""
-    c = np.array([_C1, _C2, _C3], dtype=float)
+    """The (3, 20) coefficient table (rows f1, f2, f3; read-only without ``variant``).
+    ``variant`` overrides disputed entries by name (keys of :data:`DISPUTED`)."""
+    if not variant:
+        return _TABLE
+    c = _TABLE.copy()
     for k, v in (variant or {}).items():
         choice("coefficient variant", k, list(DISPUTED))
         c[DISPUTED[k]] = float(v)
