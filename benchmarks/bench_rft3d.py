@@ -97,9 +97,11 @@ def measure(load: int) -> dict:
     res["batch_poses"] = S
     # single pose of the foot
     ev = r3.Evaluator(foot, med)
+    ev32 = r3.Evaluator(foot, med, dtype=np.float32)
     x0, q0, v0, w0 = X[0], q[0], V[0], W[0]
     single = {
         "Evaluator (serial, compiled)": timed(lambda: ev(x0, q0, v0, w0)),
+        "Evaluator float32": timed(lambda: ev32(x0, q0, v0, w0)),
         "wrench() (checks + serial kernel)": timed(lambda: r3.wrench(foot, x0, q0, v0, w0, med)),
         "forced parallel region": timed(lambda: r3.wrench_batch(foot, x0, q0, v0, w0, med, parallel=True)),
         "numpy (element_tractions)": timed(lambda: r3.element_tractions(foot, x0, q0, v0, w0, med),

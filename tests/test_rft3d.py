@@ -29,6 +29,20 @@ def test_compiled_kernel_matches_numpy_reference(dyn):
         np.testing.assert_allclose(got, ref, atol=1e-12 * scale)
 
 
+def test_single_precision_paths_agree_with_double():
+    rng = np.random.default_rng(5)
+    body = r3.foot_sole()
+    X, q, V, W = _random_poses(20, rng, depth=0.005)
+    ref = r3.wrench_batch(body, X, q, V, W, MED)
+    scale = np.abs(ref).max()
+    np.testing.assert_allclose(r3.wrench_batch(body, X, q, V, W, MED, dtype=np.float32), ref,
+                               atol=1e-5 * scale)
+    ev = r3.Evaluator(body, MED, dtype=np.float32)
+    np.testing.assert_allclose(ev(X[3], q[3], V[3], W[3]), ref[3], atol=1e-5 * scale)
+    np.testing.assert_allclose(r3.Evaluator(body, MED)(X[3], q[3], V[3], W[3]), ref[3],
+                               atol=1e-12 * scale)
+
+
 def test_horizontal_plate_pushed_down_closed_form():
     """A buried horizontal plate pushed straight down: bottom face alpha_z(down) xi_n depth A,
     side walls only their friction-capped tangential stress (closed form too)."""
