@@ -17,7 +17,6 @@ from __future__ import annotations
 import json
 import os
 import platform
-import subprocess
 import sys
 import time
 from pathlib import Path
@@ -30,6 +29,9 @@ from terradyn import rft3d as r3
 from terradyn.rft import engine as e2
 from terradyn.rft3d import engine as e3
 from terradyn.rft3d.presets import foot_sole
+
+sys.path.insert(0, str(Path(__file__).parent))
+from bench_threading import hogs  # noqa: E402  (the same two busy processes)
 
 QUICK = "--quick" in sys.argv
 OUT = Path(__file__).parent / "results" / "rft3d.json"
@@ -122,10 +124,6 @@ def measure(load: int) -> dict:
     }
     res["standard_curve_2d"] = curve
     return res
-
-
-def hogs(k: int) -> list:
-    return [subprocess.Popen([sys.executable, "-c", "while True: pass"]) for _ in range(k)]
 
 
 def main() -> None:

@@ -9,13 +9,13 @@ W = 2 vec(dq/dt q*) from the spline of the quaternion components.
 """
 from __future__ import annotations
 
-import csv
 from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
 
 from ..errors import InputError, finite, finite_array, integer, positive
+from ..motion import check_time, read_columns
 from ..units import CM, DEG
 from .engine import check_quaternions
 
@@ -54,16 +54,6 @@ class Poses:
         return len(self.time)
 
 
-def _check_time(t) -> np.ndarray:
-    t = finite_array("time", t, ndim=1)
-    if len(t) < 2:
-        raise InputError("time", "need at least 2 samples")
-    if (np.diff(t) <= 0).any():
-        i = int(np.argmax(np.diff(t) <= 0))
-        raise InputError("time", f"must be strictly increasing (sample {i + 1} is not after sample {i})")
-    return t
-
-
 @dataclass(frozen=True, eq=False)
 class RigidMotion:
     """Any rigid 6-DoF motion from samples: time (S,) s, position (S, 3) m, quaternion (S, 4)
@@ -77,7 +67,7 @@ class RigidMotion:
     angular_velocity: np.ndarray | None = None
 
     def __post_init__(self):
-        t = _check_time(self.time)
+        t = check_time(self.time)
         object.__setattr__(self, "time", t)
         q = check_quaternions(self.quaternion)
         if q.shape != (len(t), 4):
@@ -206,27 +196,9 @@ def read_motion3d_csv(path: str | Path) -> RigidMotion:
     """Read a 6-DoF motion CSV with columns time_s, x_cm, y_cm, z_cm, qw, qx, qy, qz
     (position of the body-frame origin, unit quaternion body to world)."""
     path = Path(path)
-    if not path.is_file():
-        raise InputError("motion", f"file not found: {path}")
-    with open(path, newline="") as fh:
-        reader = csv.DictReader(fh)
-        cols = reader.fieldnames or []
-        missing = [c for c in MOTION_COLUMNS if c not in cols]
-        if missing:
-            raise InputError("motion", f"{path}: missing column(s) {', '.join(missing)}; "
-                                       f"expected {','.join(MOTION_COLUMNS)}")
-        rows = []
-        for lineno, row in enumerate(reader, start=2):
-            try:
-                vals = [float(row[c]) for c in MOTION_COLUMNS]
-            except (TypeError, ValueError):
-                raise InputError("motion", f"{path} line {lineno}: non-numeric value") from None
-            if not np.isfinite(vals).all():
-                raise InputError("motion", f"{path} line {lineno}: non-finite value")
-            rows.append(vals)
-    if len(rows) < 2:
+    a = read_columns(path, "motion", MOTION_COLUMNS)
+    if len(a) < 2:
         raise InputError("motion", f"{path}: need at least 2 data rows")
-    a = np.array(rows)
     try:
         return RigidMotion(a[:, 0], a[:, 1:4] * CM, a[:, 4:8])
     except InputError as e:
