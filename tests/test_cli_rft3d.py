@@ -18,6 +18,14 @@ def test_rft3d_netcdf_figure_and_csv(tmp_path, capsys):
     assert ds.Fz.attrs["units"] == "N" and ds.Tx.attrs["units"] == "N m"
     assert ds.attrs["model"] == "rft3d-agarwal" and '"poppy LP"' in ds.attrs["input"]
     assert float(ds.Fz.max()) > 1 and png.stat().st_size > 20_000
+    el = tmp_path / "el.nc"
+    assert main(["rft3d", "--body", "flat", *FAST, "--elements-out", str(el), "-o", str(tmp_path / "f.nc")]) == 0
+    import xarray as xr
+
+    with xr.open_dataset(el, engine="h5netcdf") as e:
+        tot = (e.traction_z * e.area).sum("element").values
+        assert e.sizes["element"] > 1000 and e.traction_z.attrs["units"] == "N/m^2"
+    np.testing.assert_allclose(tot, io.read(tmp_path / "f.nc").Fz.values, rtol=1e-9, atol=1e-12)
     assert main(["rft3d", "--body", "flat", *FAST, "--model", "treers", "--alpha", "table",
                  "--dynamic"]) == 0
     head = capsys.readouterr().out.splitlines()[0]

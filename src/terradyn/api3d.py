@@ -57,8 +57,9 @@ def rft3d_series(mesh=None, mesh_units="mm", open_surface=False, max_edge_cm=Non
                  omega=0.2, angle_start_deg=-135.0, angle_end_deg=135.0, n_angles=271,
                  surface_cm=0.0, medium="3 mm glass CP", model="agarwal", xi_from="friction",
                  mu_surf=None, alpha="fit", table_file=None, dynamic_lambda=None,
-                 frame_deg=None, want_frame=False):
-    """(force series, per-element frame or None, body) from field-unit inputs."""
+                 frame_deg=None, want_frame=False, want_elements=False):
+    """(force series, per-element frame or None, body[, per-element dataset]) from field-unit
+    inputs; the 4th item only with ``want_elements``."""
     from .errors import choice, finite
     from .media import MEDIA, stress_model
     from .rft3d import api
@@ -83,7 +84,7 @@ def rft3d_series(mesh=None, mesh_units="mm", open_surface=False, max_edge_cm=Non
                                   angle_start_deg, angle_end_deg, n_angles)
     surface = finite("surface-cm", surface_cm, "cm") * CM
     w, p, el = api.compute(b, mot, med, model, surface, None, dynamic_lambda, sm,
-                           elements=want_frame)
+                           elements=want_frame or want_elements)
     ds = api.wrench_series(w, p, b, mot, med, model, surface, None, dynamic_lambda, sm)
     frame = None
     if want_frame:
@@ -98,4 +99,6 @@ def rft3d_series(mesh=None, mesh_units="mm", open_surface=False, max_edge_cm=Non
 
         frame["vertices"] = p.position[j] + b.vertices @ rotation_matrices(p.quaternion[j]).T
         frame["frame_x"] = float(p.angle[j] / DEG) if p.angle is not None else float(p.time[j])
+    if want_elements:
+        return ds, frame, b, api.element_dataset(el, p, b, ds)
     return ds, frame, b

@@ -46,6 +46,7 @@ def rft3d(
     dynamic: bool = typer.Option(False, "--dynamic", help="Add the dynamic-RFT inertial term (Agarwal 2021)."),
     lam: float = typer.Option(1.1, "--lambda", help="Dynamic-RFT lambda (with --dynamic)."),
     out: Optional[str] = typer.Option(None, "--out", "-o", help="Output .nc, .zarr or .csv [default: CSV on stdout]."),
+    elements_out: Optional[Path] = typer.Option(None, help="Also write the per-element tractions (time x element) to this .nc or .zarr file."),
     plot: Optional[Path] = typer.Option(None, help="Figure of the body with its element tractions and the forces (.png/.pdf/.svg)."),
     frame_deg: Optional[float] = typer.Option(None, help="Angle (rotation) of the frame in the figure, deg [default: at the largest |F|]."),
 ):
@@ -63,15 +64,20 @@ def rft3d(
         raise InputError("lambda", "only applies with --dynamic")
     io.check_output(out)
     io.check_plot(plot)
-    ds, frame, b = rft3d_series(
+    if elements_out is not None:
+        io.check_output(elements_out, "elements-out", (".nc", ".zarr"))
+    res = rft3d_series(
         mesh=mesh, mesh_units=mesh_units.value, open_surface=open_surface, max_edge_cm=max_edge_cm,
         body=body.value, motion=motion, axis=axis, center_cm=center_cm, position_cm=position_cm,
         quat=quat, omega=omega, angle_start_deg=angle_start_deg, angle_end_deg=angle_end_deg,
         n_angles=n_angles, surface_cm=surface_cm, medium=medium, model=model.value,
         xi_from=xi_from.value, mu_surf=mu_surf, alpha=alpha.value, table_file=table_file,
         dynamic_lambda=lam if dynamic else None, frame_deg=frame_deg if plot else None,
-        want_frame=plot is not None)
+        want_frame=plot is not None, want_elements=elements_out is not None)
+    ds, frame, b = res[:3]
     io.emit(ds, out)
+    if elements_out is not None:
+        io.write(res[3], elements_out)
     if plot is not None:
         from ..plots_rft3d import body_tractions
 
@@ -79,8 +85,9 @@ def rft3d(
                        surface=surface_cm / 100)
     from . import err
 
-    if out not in (None, "-"):
-        err(f"wrote {out}" + (f" and {plot}" if plot else ""))
+    written = [str(x) for x in (None if out in (None, "-") else out, elements_out, plot) if x]
+    if written:
+        err("wrote " + ", ".join(written))
 
 
 def register(app: typer.Typer) -> None:

@@ -102,6 +102,26 @@ def wrench_series(w, p, body, motion, medium, model, surface, point, dynamic_lam
     return ds
 
 
+def element_dataset(el: dict, p, body: Body, series: xr.Dataset) -> xr.Dataset:
+    """Per-element results as an xarray Dataset along (time, element): traction_x/y/z
+    (N/m^2), force_x/y/z (N), depth (m), centroid x/y/z (m, world) and ``active``; element
+    coordinates area (m^2) and body-frame centroid; attrs of the force series ``series``."""
+    data = {}
+    for k, name, unit in (("traction", "traction", "N/m^2"), ("force", "force", "N"),
+                          ("r", "centroid", "m")):
+        for i, c in enumerate("xyz"):
+            data[f"{name}_{c}"] = (("time", "element"), el[k][..., i], {"units": unit})
+    data["depth"] = (("time", "element"), el["depth"], {"units": "m"})
+    data["active"] = (("time", "element"), el["active"].astype(np.int8),
+                      {"long_name": "submerged, moving and leading (1) or not (0)"})
+    ds = xr.Dataset(data, coords={"time": ("time", p.time, {"units": "s"}),
+                                  "element": np.arange(len(body)),
+                                  "area": ("element", body.areas, {"units": "m^2"})})
+    ds.attrs.update(series.attrs)
+    ds.attrs["content"] = "per-element 3D-RFT tractions (force of the medium on the body per area)"
+    return ds
+
+
 def element_frame(body: Body, motion, medium, index: int, **options) -> dict:
     """Per-element result at one sample of ``motion`` (for figures): the dict of
     ``element_tractions`` reduced to sample ``index``."""

@@ -16,9 +16,10 @@ Two paths compute the same thing:
 
 * :func:`element_tractions` - NumPy, every per-element quantity (tractions, depths,
   velocities, world positions), any surface-correction hook; the straightforward reference;
-* a compiled kernel (:func:`wrench`, :func:`wrench_batch`) - the same law per element without a
-  trigonometric call; serial for small work (one pose of a 2,000-triangle foot: no parallel
-  region to pay for), parallel over poses and element blocks above :data:`PARALLEL_MIN_WORK`.
+* a compiled kernel (:func:`wrench`, :func:`wrench_batch`, :class:`Evaluator`) - the same law
+  per element without a trigonometric call; serial for small work (one pose of a
+  2,000-triangle foot: no parallel region to pay for), parallel over poses and element blocks
+  above :data:`PARALLEL_MIN_WORK` when a core is free (:func:`choose_parallel`).
 """
 from __future__ import annotations
 
@@ -321,17 +322,32 @@ def _params(medium: Medium3D, dynamic_lambda: float | None) -> np.ndarray:
                      (dynamic_lambda or 0.0) * medium.bulk_density], dtype=float)
 
 
+def choose_parallel(work: int) -> bool:
+    """Parallel only for work (element evaluations) >= :data:`PARALLEL_MIN_WORK` and only
+    when the machine has a free core: with the 1-minute load average at or above the number
+    of CPUs the threads of a parallel region wait for cores and the call runs slower than
+    serially (benchmarks/bench_rft3d.py measured 0.6-0.8x at load 7-10 on 2 cores)."""
+    if work < PARALLEL_MIN_WORK or numba.get_num_threads() < 2:
+        return False
+    try:
+        import os
+
+        return os.getloadavg()[0] < (os.cpu_count() or 1)
+    except OSError:  # no load average on this platform
+        return True
+
+
 def run_kernel(G: np.ndarray, T: np.ndarray, C: np.ndarray, prm: np.ndarray,
                parallel: bool | None = None, dtype=np.float64) -> np.ndarray:
     """Net wrenches (S, 6) from packed arrays. ``parallel=None`` chooses by the work size
-    (poses x elements >= :data:`PARALLEL_MIN_WORK`). ``dtype=np.float32`` runs the element
+    (:func:`choose_parallel`). ``dtype=np.float32`` runs the element
     loop in single precision (about twice the throughput, ~1e-5 relative precision); the
     result is float64 either way."""
     S, n = T.shape[0], G.shape[1]
+    if parallel is None:
+        parallel = choose_parallel(S * n)
     if np.dtype(dtype) != np.float64:
         G, T, C, prm = (np.ascontiguousarray(a, dtype=dtype) for a in (G, T, C, prm))
-    if parallel is None:
-        parallel = S * n >= PARALLEL_MIN_WORK
     if not parallel:
         out = np.empty((S, 6), dtype=G.dtype)
         _wrench_serial(G, T, C, prm, out)
