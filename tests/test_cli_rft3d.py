@@ -57,7 +57,7 @@ def test_rft3d_mesh_file_and_motion_file(tmp_path, capsys):
     (["--quat", "1,0,0"], "quat"),
     (["--medium", "sand"], "medium"),
     (["--lambda", "2"], "lambda"),
-    (["--model", "treers", "--xi-from", "plate"], "xi-from"),
+    (["--model", "treers", "--xi-from", "friction"], "xi-from"),
     (["--out", "x.txt"], "out"),
 ])
 def test_rft3d_bad_input_one_line_exit_2(tmp_path, capsys, args, field):

@@ -55,7 +55,7 @@ def motion_from_field_units(motion: Path | None = None, axis: str = "0,1,0", cen
 def rft3d_series(mesh=None, mesh_units="mm", open_surface=False, max_edge_cm=None, body="c",
                  motion=None, axis="0,1,0", center_cm="0,0,2", position_cm=None, quat="1,0,0,0",
                  omega=0.2, angle_start_deg=-135.0, angle_end_deg=135.0, n_angles=271,
-                 surface_cm=0.0, medium="3 mm glass CP", model="agarwal", xi_from="friction",
+                 surface_cm=0.0, medium="3 mm glass CP", model="agarwal", xi_from="plate",
                  mu_surf=None, alpha="fit", table_file=None, dynamic_lambda=None,
                  frame_deg=None, want_frame=False, want_elements=False):
     """(force series, per-element frame or None, body[, per-element dataset]) from field-unit
@@ -73,7 +73,7 @@ def rft3d_series(mesh=None, mesh_units="mm", open_surface=False, max_edge_cm=Non
         med = medium3d(medium, DEFAULT_MU_SURF if mu_surf is None else mu_surf, xi_from)
         sm = None
     else:
-        if xi_from != "friction" or (mu_surf is not None and mu_surf != DEFAULT_MU_SURF):
+        if xi_from != "plate" or (mu_surf is not None and mu_surf != DEFAULT_MU_SURF):
             raise InputError("xi-from", "--xi-from/--mu-surf apply with --model agarwal only")
         med = medium
         sm = stress_model(medium, alpha, None, "linear", table_file)

@@ -39,7 +39,7 @@ def rft3d(
     surface_cm: float = typer.Option(0.0, help="Height of the free surface, cm (bed below)."),
     medium: str = typer.Option("3 mm glass CP", help=f"Medium: {_MEDIA_HELP}."),
     model: Model = typer.Option(Model.agarwal, help="agarwal: 3D-RFT (Agarwal 2023); treers: 2D coefficients on 3D bodies (Treers 2021)."),
-    xi_from: XiFrom = typer.Option(XiFrom.friction, help="agarwal: medium scale xi_n from friction (Agarwal 2023) or from the measured plate alpha_z."),
+    xi_from: XiFrom = typer.Option(XiFrom.plate, help="agarwal: medium scale xi_n from the measured plate alpha_z(0, pi/2) (Li 2013) or from friction (Agarwal 2023, tan(repose angle): 2-5x too strong for these media)."),
     mu_surf: float = typer.Option(DEFAULT_MU_SURF, help="agarwal: body-grain friction coefficient (tangential cap)."),
     alpha: Alpha = typer.Option(Alpha.fit, help="treers: 2D coefficients (Fourier fit, generic x zeta, measured table)."),
     table_file: Optional[Path] = typer.Option(None, help="treers: your own measured grid (Table S5 CSV format), with --alpha table."),
