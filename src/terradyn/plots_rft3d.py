@@ -35,7 +35,7 @@ def _draw(fig, ncol, body, frame, series, title, surface, n_arrows):
     norm = colors.Normalize(0, max(mag.max(), 1e-9))
     cmap = cm.viridis
     fc = cmap(norm(mag))
-    fc[mag == 0] = (0.85, 0.85, 0.85, 1.0)
+    fc[mag == 0] = (0.85, 0.85, 0.85, 0.35)  # elements without load: faint
     ax.add_collection3d(Poly3DCollection(tri, facecolors=fc, edgecolors=(0, 0, 0, 0.08), linewidths=0.2))
     f = frame["force"]
     fm = np.linalg.norm(f, axis=-1)
@@ -61,8 +61,17 @@ def _draw(fig, ncol, body, frame, series, title, surface, n_arrows):
     sm = cm.ScalarMappable(norm=norm, cmap=cmap)
     fig.colorbar(sm, ax=ax, shrink=0.6, pad=0.1, label="traction magnitude (kPa)")
     if fm.max() > 0:
-        ax.legend(loc="upper left", fontsize=8)
-    ax.view_init(elev=18, azim=-75)
+        ax.legend(loc="lower left", fontsize=7)
+    # look at the loaded side: the force-weighted mean outward normal of the loaded elements
+    nrm = frame.get("normal")
+    if nrm is not None and fm.max() > 0:
+        m = (fm[:, None] * nrm).sum(0)
+        if np.linalg.norm(m) > 0:
+            m = m / np.linalg.norm(m)
+            ax.view_init(elev=float(np.clip(np.degrees(np.arcsin(m[2])), -10, 60)),
+                         azim=float(np.degrees(np.arctan2(m[1], m[0]))) + 20)
+    else:
+        ax.view_init(elev=18, azim=-75)
     ax.set_title(title or body.name, fontsize=10)
     if series is not None:
         ax2 = fig.add_subplot(1, 2, 2)
