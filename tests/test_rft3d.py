@@ -29,6 +29,20 @@ def test_compiled_kernel_matches_numpy_reference(dyn):
         np.testing.assert_allclose(got, ref, atol=1e-12 * scale)
 
 
+def test_poses_above_the_surface_are_skipped_exactly():
+    """The kernel skips a pose whose bounding sphere is above the surface: poses straddling the
+    surface still match the NumPy reference, and one fully above gives exactly zero."""
+    rng = np.random.default_rng(11)
+    body = r3.foot_sole()
+    X, q, V, W = _random_poses(60, rng, depth=0.0)
+    X[:, 2] = rng.uniform(-0.05, 0.3, 60)
+    ref = r3.element_tractions(body, X, q, V, W, MED)["wrench"]
+    got = r3.wrench_batch(body, X, q, V, W, MED)
+    np.testing.assert_allclose(got, ref, atol=1e-12 * np.abs(ref).max())
+    assert (np.abs(ref).sum(1) == 0).sum() > 10 and (np.abs(ref).sum(1) > 0).sum() > 10
+    assert not np.any(r3.wrench(body, [0, 0, 0.2], [1, 0, 0, 0], [0, 0, -1], [0, 0, 0], MED))
+
+
 def test_single_precision_paths_agree_with_double():
     rng = np.random.default_rng(5)
     body = r3.foot_sole()

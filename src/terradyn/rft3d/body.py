@@ -49,6 +49,12 @@ class Body:
             self.__dict__["_packed"] = p
         return p
 
+    def bounding_sphere(self) -> tuple[float, float, float, float]:
+        """A sphere (centre x, y, z, radius; m, body frame) holding every element centroid."""
+        c = 0.5 * (self.centroids.min(0) + self.centroids.max(0))
+        r = float(np.linalg.norm(self.centroids - c, axis=1).max()) * (1 + 1e-9) + 1e-12
+        return (*map(float, c), r)
+
     def mesh(self):
         """The body as a :class:`trimesh.Trimesh`."""
         import trimesh

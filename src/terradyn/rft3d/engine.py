@@ -194,16 +194,24 @@ def _cubic(c, x1, x2, x3, x11, x22, x33):  # pragma: no cover - compiled
 
 
 @numba.njit(fastmath=True, cache=True, error_model="numpy")
-def _block(G, T, j, lo, hi, c1, c2, c3, xi, mus, lamrho, out, k):  # pragma: no cover - compiled
+def _block(G, T, j, lo, hi, C, prm, out, k):  # pragma: no cover - compiled
     """Sum of the wrenches of elements lo..hi at pose j into out[k] (Fx, Fy, Fz, Tx, Ty, Tz).
 
     G (7, n) body data as rows cx, cy, cz, nx, ny, nz, area (struct of arrays); T (S, 22)
-    poses. Written without branches (a mask multiplies each element's force) and with the
+    poses; C (3, 20) coefficients; prm (7,) xi_n, mu_surf, lambda rho and the body's bounding
+    sphere (centre x, y, z, radius; body frame): a pose whose sphere is above the surface is
+    skipped. Written without branches (a mask multiplies each element's force) and with the
     cubic fits unrolled so that the element loop compiles to SIMD instructions."""
+    c1, c2, c3 = C[0], C[1], C[2]
+    xi, mus, lamrho = prm[0], prm[1], prm[2]
     r00, r01, r02 = T[j, 3], T[j, 4], T[j, 5]
     r10, r11, r12 = T[j, 6], T[j, 7], T[j, 8]
     r20, r21, r22 = T[j, 9], T[j, 10], T[j, 11]
     Xx, Xy, Xz = T[j, 0], T[j, 1], T[j, 2]
+    if Xz + r20 * prm[3] + r21 * prm[4] + r22 * prm[5] - prm[6] >= T[j, 21]:
+        for c in range(6):
+            out[k, c] = 0.0  # the whole body is above the surface
+        return
     Vx, Vy, Vz = T[j, 12], T[j, 13], T[j, 14]
     wx, wy, wz = T[j, 15], T[j, 16], T[j, 17]
     px, py, pz = Xx - T[j, 18], Xy - T[j, 19], Xz - T[j, 20]  # origin relative to the torque point
@@ -274,10 +282,10 @@ def _block(G, T, j, lo, hi, c1, c2, c3, xi, mus, lamrho, out, k):  # pragma: no 
 @numba.njit(fastmath=True, cache=True, error_model="numpy")
 def _wrench_serial(G, T, C, prm, out):  # pragma: no cover - compiled
     """Net wrench of every pose, serial. G (n, 7) body; T (S, 22) poses; C (3, 20) coefficients;
-    prm (3,) xi_n, mu_surf, lambda rho; out (S, 6)."""
+    prm (7,) see :func:`_block`; out (S, 6)."""
     n = G.shape[1]
     for j in range(T.shape[0]):
-        _block(G, T, j, 0, n, C[0], C[1], C[2], prm[0], prm[1], prm[2], out, j)
+        _block(G, T, j, 0, n, C, prm, out, j)
 
 
 @numba.njit(parallel=True, fastmath=True, cache=True, error_model="numpy")
@@ -291,7 +299,7 @@ def _wrench_parallel(G, T, C, prm, nblk, part):  # pragma: no cover - compiled
         b = k - j * nblk
         lo = b * size
         hi = min(n, lo + size)
-        _block(G, T, j, lo, hi, C[0], C[1], C[2], prm[0], prm[1], prm[2], part, k)
+        _block(G, T, j, lo, hi, C, prm, part, k)
 
 
 @numba.njit(fastmath=True, cache=True, error_model="numpy")
@@ -314,12 +322,13 @@ def _wrench_one(G, C, prm, X, q, V, W, P, h, T, out):  # pragma: no cover - comp
         T[0, 15 + k] = W[k]
         T[0, 18 + k] = P[k]
     T[0, 21] = h
-    _block(G, T, 0, 0, G.shape[1], C[0], C[1], C[2], prm[0], prm[1], prm[2], out, 0)
+    _block(G, T, 0, 0, G.shape[1], C, prm, out, 0)
 
 
-def _params(medium: Medium3D, dynamic_lambda: float | None) -> np.ndarray:
-    return np.array([medium.xi_n, medium.mu_surf,
-                     (dynamic_lambda or 0.0) * medium.bulk_density], dtype=float)
+def _params(medium: Medium3D, dynamic_lambda: float | None, body: Body) -> np.ndarray:
+    """Kernel parameters (7,): xi_n, mu_surf, lambda rho, bounding sphere of the body."""
+    return np.array([medium.xi_n, medium.mu_surf, (dynamic_lambda or 0.0) * medium.bulk_density,
+                     *body.bounding_sphere()], dtype=float)
 
 
 def choose_parallel(work: int) -> bool:
@@ -377,7 +386,7 @@ def wrench_batch(body: Body, position, quaternion, velocity, angular_velocity, m
     X, q, V, W, P, h = _steps(position, quaternion, velocity, angular_velocity, point, surface)
     C = coefficients() if coef is None else np.ascontiguousarray(coef, float)
     return run_kernel(body.packed(), pose_table(X, q, V, W, P, h), C,
-                      _params(medium, dynamic_lambda), parallel, dtype)
+                      _params(medium, dynamic_lambda, body), parallel, dtype)
 
 
 def wrench(body: Body, position, quaternion, velocity, angular_velocity, medium: Medium3D,
@@ -401,7 +410,7 @@ def wrench(body: Body, position, quaternion, velocity, angular_velocity, medium:
     if not np.isfinite(h):
         raise InputError("surface", f"must be finite (m), got {surface!r}")
     out = np.empty((1, 6))
-    _wrench_one(body.packed(), coefficients(), _params(medium, dynamic_lambda), X, q, V, W, P,
+    _wrench_one(body.packed(), coefficients(), _params(medium, dynamic_lambda, body), X, q, V, W, P,
                 h, np.empty((1, POSE_COLUMNS)), out)
     return out[0]
 
@@ -422,7 +431,7 @@ class Evaluator:
         dt = np.dtype(dtype)
         self._G = np.ascontiguousarray(body.packed(), dtype=dt)
         self._C = np.ascontiguousarray(coefficients() if coef is None else coef, dtype=dt)
-        self._prm = _params(medium, dynamic_lambda).astype(dt)
+        self._prm = _params(medium, dynamic_lambda, body).astype(dt)
         self._T = np.empty((1, POSE_COLUMNS), dtype=dt)
         self._out = np.empty((1, 6), dtype=dt)
 
