@@ -50,10 +50,14 @@ class Body:
         return p
 
     def bounding_sphere(self) -> tuple[float, float, float, float]:
-        """A sphere (centre x, y, z, radius; m, body frame) holding every element centroid."""
-        c = 0.5 * (self.centroids.min(0) + self.centroids.max(0))
-        r = float(np.linalg.norm(self.centroids - c, axis=1).max()) * (1 + 1e-9) + 1e-12
-        return (*map(float, c), r)
+        """A sphere (centre x, y, z, radius; m, body frame) holding every element centroid
+        (cached)."""
+        b = self.__dict__.get("_bound")
+        if b is None:
+            c = 0.5 * (self.centroids.min(0) + self.centroids.max(0))
+            r = float(np.linalg.norm(self.centroids - c, axis=1).max()) * (1 + 1e-9) + 1e-12
+            b = self.__dict__["_bound"] = (*map(float, c), r)
+        return b
 
     def mesh(self):
         """The body as a :class:`trimesh.Trimesh`."""
