@@ -16,10 +16,8 @@ import matplotlib
 
 matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
-import numpy as np  # noqa: E402
 
 import terradyn as td  # noqa: E402
-from terradyn import rft3d as r3  # noqa: E402
 from terradyn.plots import STYLE  # noqa: E402
 from terradyn.rft3d import studies  # noqa: E402
 

@@ -14,7 +14,7 @@ from ..media import FITS, MEDIA
 from ..motion import Rotation, standard_rotation
 from ..units import CM, DEG
 from .api import compute
-from .model import AgarwalPlanar, medium3d
+from .model import medium3d
 from .motion import PlanarAs3D
 from .presets import leg3d
 
