@@ -14,23 +14,28 @@ medium on the body; torques are about ``point`` (world, m), by default the body-
 API::
 
     body = plate(length=0.0762, width=0.0254, thickness=0.0064)   # or box, cylinder, sphere,
+    body = leg3d("c"), wheel(), foot_sole(), preset(name)           # the standard legs, ...
     body = read_mesh("foot.stl", units="mm")                        # from_trimesh(mesh)
     body.centroids (n, 3) m, body.normals (n, 3) outward unit, body.areas (n,) m^2 (body frame)
-    medium = medium3d("poppy LP")            # Medium3D(name, xi_n N/m^3, mu_surf, bulk_density)
+    medium = medium3d("poppy LP", xi_from="plate")  # Medium3D(name, xi_n N/m^3, mu_surf, rho)
     medium = agarwal_medium(bulk_density, mu_internal, mu_surf)
 
     wrench(body, X, q, V, W, medium, surface=0.0, point=None, dynamic_lambda=None) -> (6,)
     wrench_batch(body, X (S,3), q (S,4), V (S,3), W (S,3), medium, surface=0.0 | (S,),
-                 point=None | (3,) | (S,3), dynamic_lambda=None, parallel=None) -> (S, 6)
+                 point=None | (3,) | (S,3), dynamic_lambda=None, parallel=None,
+                 dtype=np.float64) -> (S, 6)
         # [Fx, Fy, Fz] N, [Tx, Ty, Tz] N m; compiled, serial for small work
-    Evaluator(body, medium, dynamic_lambda=None)(X, q, V, W, surface=0.0, point=None) -> (6,)
+    Evaluator(body, medium, dynamic_lambda=None, dtype=np.float64)(X, q, V, W, surface=0.0,
+                                                                   point=None) -> (6,)
         # fastest single pose, for a physics engine's step
     element_tractions(body, X, q, V, W, medium, surface=0.0, point=None, dynamic_lambda=None,
                       surface_correction=None) -> dict
         # NumPy: traction (S,n,3) N/m^2, force (S,n,3) N, r, v, normal, depth, active, wrench
 
     simulate(body, motion, medium, **options) -> xarray.Dataset
-        # along time (s): Fx, Fy, Fz (N), Tx, Ty, Tz (N m), attrs record the input
+        # along time (s): Fx, Fy, Fz (N), Tx, Ty, Tz (N m), attrs record the input;
+        # options: model="agarwal"|"treers", surface, point, dynamic_lambda, stress_model
+        #          (treers: any 2D coefficient set), surface_correction, parallel
     motions: RigidMotion(time, position, quaternion[, velocity, angular_velocity]),
              AxisRotation(axis, center, omega, angle_start, angle_end, n, position0, quaternion0),
              PlanarAs3D(planar_motion), read_motion3d_csv(path)
