@@ -428,3 +428,22 @@ def test_plate_drag_form_against_the_shipped_sph():
         assert 0 <= r["dynamic_rft_change_frac"] < 0.01
         assert r["sph_peak_low_N"] > 1
     assert 0.5 < res["plate_crossover_speed_m_s"] < 5
+
+
+def test_surface_correction_hooks_shift_the_free_surface():
+    """A constant delta_h is the same as lowering the free surface by delta_h (z~ = z + delta_h),
+    in the 3D engine and in the 2D engine."""
+    import terradyn as td
+    from terradyn.rft.engine import net_forces
+
+    body = r3.leg3d("c", n_along=20, n_width=2)
+    mot = r3.PlanarAs3D(td.standard_rotation(n_theta=31))
+    a = r3.simulate(body, mot, MED, surface_correction=lambda r, v: np.full(r.shape[:2], 0.004))
+    b = r3.simulate(body, mot, MED, surface=-0.004)
+    np.testing.assert_allclose(a.Fz.values, b.Fz.values, rtol=1e-12, atol=1e-12)
+    traj = td.standard_rotation(n_theta=31).trajectory()
+    fit = td.FITS["poppy LP"]
+    c = net_forces(td.c_leg(), traj, fit, surface_correction=lambda st: np.full(st.depth.shape, 0.004))
+    d = net_forces(td.c_leg(), traj, fit, surface=-0.004)
+    np.testing.assert_allclose(c, d, rtol=1e-9, atol=1e-12)
+    assert np.abs(d[1]).max() > 0.5

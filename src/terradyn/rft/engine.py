@@ -71,13 +71,23 @@ def element_states(el: Elements, traj: Trajectory, surface: float = 0.0) -> Elem
 
 
 def element_forces(el: Elements, traj: Trajectory, model: StressModel, surface: float = 0.0,
-                   states: ElementStates | None = None, dynamic: tuple[float, float] | None = None):
+                   states: ElementStates | None = None, dynamic: tuple[float, float] | None = None,
+                   surface_correction=None):
     """Force on each element, (fx, fz) arrays (S, n) in N, and the states used.
 
     ``dynamic=(lambda, rho)`` adds the dynamic-RFT inertial term of Agarwal et al. (2021),
     -n lambda rho v_n^2 dA on each touching element (n its normal on the side it moves
-    towards, v_n the normal speed; rho the bulk density, kg/m^3)."""
+    towards, v_n the normal speed; rho the bulk density, kg/m^3). ``surface_correction``:
+    hook ``f(states) -> delta_h`` (S, n) m; the depth used is that of z~ = z + delta_h."""
     st = states if states is not None else element_states(el, traj, surface)
+    if surface_correction is not None:
+        dh = np.asarray(surface_correction(st), dtype=float)
+        if dh.shape != st.depth.shape or not np.isfinite(dh).all():
+            from ..errors import InputError
+
+            raise InputError("surface_correction", f"must return finite delta_h of shape {st.depth.shape} in m")
+        st = ElementStates(st.x, st.z, np.maximum(surface - st.z - dh, 0.0), st.beta, st.gamma,
+                           st.vx, st.vz)
     touching = (st.depth > 0) & (np.hypot(st.vx, st.vz) > REST_SPEED)
     fx = np.zeros_like(st.depth)
     fz = np.zeros_like(st.depth)
@@ -97,8 +107,9 @@ def element_forces(el: Elements, traj: Trajectory, model: StressModel, surface: 
 
 
 def _net_numpy(el: Elements, traj: Trajectory, model: StressModel, surface: float,
-               dynamic: tuple[float, float] | None = None):
-    fx, fz, st = element_forces(el, traj, model, surface, dynamic=dynamic)
+               dynamic: tuple[float, float] | None = None, surface_correction=None):
+    fx, fz, st = element_forces(el, traj, model, surface, dynamic=dynamic,
+                                surface_correction=surface_correction)
     rx = st.x - traj.hip_x[:, None]
     rz = st.z - traj.hip_z[:, None]
     return fx.sum(1), fz.sum(1), (rx * fz - rz * fx).sum(1)
@@ -304,13 +315,13 @@ def _net_fourier(packed: PackedElements, traj: Trajectory, fit: FourierFit, surf
 
 
 def net_forces(leg: Leg | Elements, traj: Trajectory, model: StressModel, surface: float = 0.0,
-               dynamic: tuple[float, float] | None = None):
+               dynamic: tuple[float, float] | None = None, surface_correction=None):
     """Net (Fx, Fz, torque), each (S,), N and N m. Uses the compiled kernel for a
     :class:`FourierFit`, NumPy for any other stress model or with ``dynamic=(lambda, rho)``
-    (dynamic RFT, see :func:`element_forces`)."""
+    or a ``surface_correction`` hook (dynamic RFT, see :func:`element_forces`)."""
     el = leg.elements() if isinstance(leg, Leg) else leg
-    if dynamic is not None and dynamic[0]:
-        return _net_numpy(el, traj, model, surface, dynamic)
+    if (dynamic is not None and dynamic[0]) or surface_correction is not None:
+        return _net_numpy(el, traj, model, surface, dynamic, surface_correction)
     if isinstance(model, FourierFit):
         # Elements are immutable: pack once and keep the packed arrays with them.
         packed = el.__dict__.get("_packed")

@@ -72,20 +72,31 @@ def legs_vs_experiment(n_theta: int = 271) -> pd.DataFrame:
 
 
 def speed_onset(omegas=None, medium: str = "3 mm glass CP", lam: float = 1.1,
-                threshold: float = 0.05) -> pd.DataFrame:
-    """Dynamic RFT of the standard legs (2D engine, Li fit, lambda) over rotation speeds:
-    the largest |F| relative to quasi-static per omega, and for each leg the omega at which it
-    first exceeds 1 + threshold, next to the Froude-like scale sqrt(g / L)."""
+                threshold: float = 0.05, engine: str = "2d") -> pd.DataFrame:
+    """Dynamic RFT of the standard legs over rotation speeds: the largest |F| relative to
+    quasi-static per omega, and for each leg the omega at which it first exceeds
+    1 + threshold, next to the Froude-like scale sqrt(g / L). ``engine="2d"``: the 2D engine
+    with Li's fit; ``"3d"``: the 3D legs (0.64 cm thick) with Agarwal's law."""
+    from ..errors import choice
+
+    choice("engine", engine, ("2d", "3d"))
     omegas = np.geomspace(0.2, 200, 31) if omegas is None else np.asarray(omegas, float)
     rho = MEDIA[medium].bulk_density
     fit = FITS[medium]
+    med3 = medium3d(medium)
     rows = []
     for shape in LEGS:
-        leg = make_leg(shape)
+        leg = make_leg(shape) if engine == "2d" else leg3d(shape)
         for w in omegas:
-            traj = Rotation(w, 2 * CM, -135 * DEG, 135 * DEG, 271).trajectory()
-            fx0, fz0, _ = rft.engine.net_forces(leg, traj, fit)
-            fx1, fz1, _ = rft.engine.net_forces(leg, traj, fit, dynamic=(lam, rho))
+            mot = Rotation(w, 2 * CM, -135 * DEG, 135 * DEG, 271)
+            if engine == "2d":
+                traj = mot.trajectory()
+                fx0, fz0, _ = rft.engine.net_forces(leg, traj, fit)
+                fx1, fz1, _ = rft.engine.net_forces(leg, traj, fit, dynamic=(lam, rho))
+            else:
+                w0 = compute(leg, PlanarAs3D(mot), med3)[0]
+                w1 = compute(leg, PlanarAs3D(mot), med3, dynamic_lambda=lam)[0]
+                fx0, fz0, fx1, fz1 = w0[:, 0], w0[:, 2], w1[:, 0], w1[:, 2]
             f0 = np.hypot(fx0, fz0).max()
             f1 = np.hypot(fx1, fz1).max()
             rows.append({"leg": shape, "omega_rad_s": float(w), "tip_speed_m_s": float(w * 0.0762),
