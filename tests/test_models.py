@@ -31,7 +31,7 @@ def test_builtins_are_registered_with_their_options():
     assert {o.name for o in rft.options} >= {"alpha", "zeta", "interp", "table_file"}
     dx = models.get("sph").option("dx_mm")
     assert dx.unit == "mm" and dx.describe() == "(0, 10] mm"
-    with pytest.raises(InputError, match="model: unknown model 'fem'; allowed: rft, sph"):
+    with pytest.raises(InputError, match="model: unknown model 'fem'; allowed: rft, rft3d, sph"):
         models.get("fem")
 
 
@@ -135,3 +135,17 @@ def test_readme_examples_work_as_written():
     air = td.Rotation(0.2, 0.2, -10 * np.pi / 180, 10 * np.pi / 180, 5)
     ds = td.sph.simulate(leg, air, material="3 mm glass CP", quick=True)
     assert float(abs(ds.Fz).max()) == 0.0
+
+
+def test_rft3d_is_registered_with_the_3d_schema():
+    from terradyn import models, rft3d, series
+
+    body = rft3d.plate()
+    mot = rft3d.AxisRotation(axis=(0.0, 1.0, 0.0), center=(0.0, 0.0, 0.03), omega=0.2,
+                             angle_start=0.0, angle_end=0.5, n=6, position0=(0.0, 0.0, -0.01))
+    ds = models.simulate("rft3d", body, mot, "poppy LP")
+    assert series.schema_of(ds).name == "3d"
+    direct = rft3d.simulate(body, mot, "poppy LP")
+    assert np.allclose(ds.Fz.values, direct.Fz.values) and np.abs(ds.Fz.values).max() > 0
+    with pytest.raises(InputError, match="model"):
+        models.simulate("rft3d", body, mot, "poppy LP", model="nope")

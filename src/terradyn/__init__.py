@@ -37,6 +37,6 @@ __all__ = [
 def __getattr__(name):  # lazy subpackages keep `import terradyn` fast
     import importlib
 
-    if name in ("rft", "sph", "dddas", "experiment", "compare", "io", "sweep", "plots", "studies"):
+    if name in ("rft", "rft3d", "sph", "dddas", "experiment", "compare", "io", "sweep", "plots", "studies"):
         return importlib.import_module(f".{name}", __name__)
     raise AttributeError(name)

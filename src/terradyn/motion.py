@@ -114,6 +114,42 @@ class Rotation:
                 "n_theta": self.n_theta}
 
 
+def check_time(time) -> np.ndarray:
+    """Sample times (S,) s: finite, at least 2, strictly increasing; else InputError."""
+    t = finite_array("time", time, ndim=1)
+    if len(t) < 2:
+        raise InputError("time", "need at least 2 samples")
+    if (np.diff(t) <= 0).any():
+        i = int(np.argmax(np.diff(t) <= 0))
+        raise InputError("time", f"must be strictly increasing (sample {i + 1} is not after sample {i})")
+    return t
+
+
+def read_columns(path: str | Path, field: str, need: tuple[str, ...]) -> np.ndarray:
+    """Rows (k, len(need)) of the named numeric columns of a CSV file; InputError naming
+    ``field`` for a missing file or column, a non-numeric or non-finite value, or no rows."""
+    path = Path(path)
+    if not path.is_file():
+        raise InputError(field, f"file not found: {path}")
+    with open_text(path, field) as fh:
+        reader = csv.DictReader(fh)
+        missing = [c for c in need if c not in (reader.fieldnames or [])]
+        if missing:
+            raise InputError(field, f"{path}: missing column(s) {', '.join(missing)}; expected {','.join(need)}")
+        rows = []
+        for lineno, row in enumerate(reader, start=2):
+            try:
+                vals = [float(row[c]) for c in need]
+            except (TypeError, ValueError):
+                raise InputError(field, f"{path} line {lineno}: non-numeric value") from None
+            if not all(np.isfinite(vals)):
+                raise InputError(field, f"{path} line {lineno}: non-finite value")
+            rows.append(vals)
+    if not rows:
+        raise InputError(field, f"{path}: no data rows")
+    return np.array(rows)
+
+
 @dataclass(frozen=True, eq=False)
 class PlanarMotion:
     """A general planar rigid motion given as time series (SI): time (S,) s strictly
@@ -129,12 +165,7 @@ class PlanarMotion:
     angular_velocity: np.ndarray | None = None
 
     def __post_init__(self):
-        t = finite_array("time", self.time, ndim=1)
-        if len(t) < 2:
-            raise InputError("time", "need at least 2 samples")
-        if (np.diff(t) <= 0).any():
-            i = int(np.argmax(np.diff(t) <= 0))
-            raise InputError("time", f"must be strictly increasing (sample {i + 1} is not after sample {i})")
+        t = check_time(self.time)
         object.__setattr__(self, "time", t)
         for name in ("hip_x", "hip_z", "angle", "hip_vx", "hip_vz", "angular_velocity"):
             v = getattr(self, name)
@@ -174,23 +205,7 @@ class PlanarMotion:
 def read_motion_csv(path: str | Path) -> PlanarMotion:
     """Read a planar motion CSV with columns time_s, hip_x_cm, hip_z_cm, angle_deg."""
     path = Path(path)
-    if not path.is_file():
-        raise InputError("motion-file", f"file not found: {path}")
-    need = ("time_s", "hip_x_cm", "hip_z_cm", "angle_deg")
-    with open_text(path, "motion-file") as fh:
-        reader = csv.DictReader(fh)
-        missing = [c for c in need if c not in (reader.fieldnames or [])]
-        if missing:
-            raise InputError("motion-file", f"{path}: missing column(s) {', '.join(missing)}")
-        rows = []
-        for lineno, row in enumerate(reader, start=2):
-            try:
-                rows.append([float(row[c]) for c in need])
-            except (TypeError, ValueError):
-                raise InputError("motion-file", f"{path} line {lineno}: non-numeric value") from None
-    if not rows:
-        raise InputError("motion-file", f"{path}: no data rows")
-    a = np.array(rows)
+    a = read_columns(path, "motion-file", ("time_s", "hip_x_cm", "hip_z_cm", "angle_deg"))
     try:
         return PlanarMotion(a[:, 0], a[:, 1] * CM, a[:, 2] * CM, a[:, 3] * DEG)
     except InputError as e:

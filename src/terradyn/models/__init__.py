@@ -53,6 +53,7 @@ from ..errors import InputError
 #: name -> "module:attribute" of a :class:`Model`; one line per built-in model.
 BUILTIN: dict[str, str] = {
     "rft": "terradyn.models.rft:MODEL",
+    "rft3d": "terradyn.models.rft3d:MODEL",
     "sph": "terradyn.models.sph:MODEL",
 }
 

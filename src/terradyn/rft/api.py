@@ -19,15 +19,19 @@ def _inputs(leg: Leg, motion, model: StressModel, medium: str | None) -> dict:
 
 
 def simulate(leg: Leg, motion: Rotation | PlanarMotion, model: StressModel,
-             medium: str | None = None) -> xr.Dataset:
+             medium: str | None = None, dynamic: tuple[float, float] | None = None) -> xr.Dataset:
     """Quasi-static RFT forces on ``leg`` following ``motion`` in a medium described by
     ``model``; a force series (coordinate ``theta`` in deg for rotations, ``time`` in s for
-    planar motions) with Fx, Fz (N) and torque (N m) about the hip."""
+    planar motions) with Fx, Fz (N) and torque (N m) about the hip. ``dynamic=(lambda, rho)``
+    adds the dynamic-RFT inertial term (Agarwal et al. 2021; rho bulk density, kg/m^3)."""
     traj = motion.trajectory()
-    fx, fz, tq = net_forces(leg, traj, model)
+    fx, fz, tq = net_forces(leg, traj, model, dynamic=dynamic)
     coord, values = ("theta", traj.angle / DEG) if traj.coord == "theta" else ("time", traj.time)
+    inputs = _inputs(leg, motion, model, medium)
+    if dynamic is not None:
+        inputs["dynamic"] = {"lambda": float(dynamic[0]), "bulk_density_kg_per_m3": float(dynamic[1])}
     return force_series(coord, values, fx, fz, tq, model="rft",
-                        inputs=_inputs(leg, motion, model, medium),
+                        inputs=inputs,
                         time=traj.time if coord == "theta" else None)
 
 

@@ -71,15 +71,29 @@ def element_states(el: Elements, traj: Trajectory, surface: float = 0.0) -> Elem
 
 
 def element_forces(el: Elements, traj: Trajectory, model: StressModel, surface: float = 0.0,
-                   states: ElementStates | None = None):
+                   states: ElementStates | None = None, dynamic: tuple[float, float] | None = None,
+                   surface_correction=None):
     """Force on each element, (fx, fz) arrays (S, n) in N, and the states used. ``el``: the
     elements or a leg (``leg.elements()``); ``traj``: a trajectory or a motion
-    (``motion.trajectory()``)."""
-    if hasattr(el, "elements") and callable(el.elements):
+    (``motion.trajectory()``).
+
+    ``dynamic=(lambda, rho)`` adds the dynamic-RFT inertial term of Agarwal et al. (2021),
+    -n lambda rho v_n^2 dA on each touching element (n its normal on the side it moves
+    towards, v_n the normal speed; rho the bulk density, kg/m^3). ``surface_correction``:
+    hook ``f(states) -> delta_h`` (S, n) m; the depth used is that of z~ = z + delta_h."""
+    if hasattr(el, "elements") and callable(el.elements):  # a leg: its elements
         el = el.elements()
-    if hasattr(traj, "trajectory") and callable(traj.trajectory):
+    if hasattr(traj, "trajectory") and callable(traj.trajectory):  # a motion: its trajectory
         traj = traj.trajectory()
     st = states if states is not None else element_states(el, traj, surface)
+    if surface_correction is not None:
+        dh = np.asarray(surface_correction(st), dtype=float)
+        if dh.shape != st.depth.shape or not np.isfinite(dh).all():
+            from ..errors import InputError
+
+            raise InputError("surface_correction", f"must return finite delta_h of shape {st.depth.shape} in m")
+        st = ElementStates(st.x, st.z, np.maximum(surface - st.z - dh, 0.0), st.beta, st.gamma,
+                           st.vx, st.vz)
     touching = (st.depth > 0) & (np.hypot(st.vx, st.vz) > REST_SPEED)
     fx = np.zeros_like(st.depth)
     fz = np.zeros_like(st.depth)
@@ -88,11 +102,20 @@ def element_forces(el: Elements, traj: Trajectory, model: StressModel, surface: 
         load = st.depth[touching] * np.broadcast_to(el.areas, st.depth.shape)[touching]
         fx[touching] = -np.asarray(ax) * load
         fz[touching] = np.asarray(az) * load
+    if dynamic is not None and dynamic[0]:
+        lam, rho = dynamic
+        nx, nz = -np.sin(st.beta), np.cos(st.beta)  # a plate normal (either side)
+        vn = st.vx * nx + st.vz * nz
+        k = -lam * rho * vn * np.abs(vn) * np.broadcast_to(el.areas, st.depth.shape) * touching
+        fx += k * nx
+        fz += k * nz
     return fx, fz, st
 
 
-def _net_numpy(el: Elements, traj: Trajectory, model: StressModel, surface: float):
-    fx, fz, st = element_forces(el, traj, model, surface)
+def _net_numpy(el: Elements, traj: Trajectory, model: StressModel, surface: float,
+               dynamic: tuple[float, float] | None = None, surface_correction=None):
+    fx, fz, st = element_forces(el, traj, model, surface, dynamic=dynamic,
+                                surface_correction=surface_correction)
     rx = st.x - traj.hip_x[:, None]
     rz = st.z - traj.hip_z[:, None]
     return fx.sum(1), fz.sum(1), (rx * fz - rz * fx).sum(1)
@@ -208,6 +231,19 @@ def _fourier_rotation_kernel(G, T, a00, surface, out):  # pragma: no cover - com
         out[d, j, 2] = tq_sum
 
 
+# Serial twins of the parallel kernels (prange runs as range): a small call must not pay for
+# a parallel region (on a busy 2-core machine the standard curve took 0.52 ms with two Numba
+# threads against 0.038 ms single-threaded). :func:`_net_fourier` picks by the work size.
+_fourier_kernel_serial = numba.njit(fastmath=True, cache=True, error_model="numpy")(
+    _fourier_kernel.py_func)
+_fourier_rotation_kernel_serial = numba.njit(fastmath=True, cache=True, error_model="numpy")(
+    _fourier_rotation_kernel.py_func)
+
+#: Element evaluations (designs x steps x elements) from which the Fourier kernels run in
+#: parallel; below it they run serially (benchmarks/bench_rft3d.py measures the crossover).
+PARALLEL_MIN_WORK = 200_000
+
+
 @dataclass(frozen=True, eq=False)
 class PackedElements:
     """Element sets of D designs padded to (D, n_max) arrays for the compiled kernel."""
@@ -269,22 +305,29 @@ class PackedElements:
 
 
 def _net_fourier(packed: PackedElements, traj: Trajectory, fit: FourierFit, surface: float,
-                 ) -> np.ndarray:
+                 parallel: bool | None = None) -> np.ndarray:
     dt = packed.sx.dtype
     out = np.empty((packed.sx.shape[0], len(traj), 3), dtype=dt)
     hx, hz, vhx, vhz, c1, s1, c2, s2, w = traj.kernel_arrays(dt)
+    if parallel is None:
+        parallel = packed.sx.size * len(traj) >= PARALLEL_MIN_WORK
+    rot_kernel = _fourier_rotation_kernel if parallel else _fourier_rotation_kernel_serial
+    kernel = _fourier_kernel if parallel else _fourier_kernel_serial
     if traj.hip_at_rest:  # rotation about a hip at rest: harmonic form
-        _fourier_rotation_kernel(packed.harmonics(fit), traj.kernel_rotation_table(dt), fit.A00,
-                                 surface, out)
+        rot_kernel(packed.harmonics(fit), traj.kernel_rotation_table(dt), fit.A00, surface, out)
     else:
-        _fourier_kernel(packed.sx, packed.sz, packed.c2b, packed.s2b, packed.area, hx, hz, vhx, vhz, c1, s1, c2, s2, w, fit.as_array(dt), dt.type(surface), out)
+        kernel(packed.sx, packed.sz, packed.c2b, packed.s2b, packed.area, hx, hz, vhx, vhz, c1, s1, c2, s2, w, fit.as_array(dt), dt.type(surface), out)
     return out
 
 
-def net_forces(leg: Leg | Elements, traj: Trajectory, model: StressModel, surface: float = 0.0):
+def net_forces(leg: Leg | Elements, traj: Trajectory, model: StressModel, surface: float = 0.0,
+               dynamic: tuple[float, float] | None = None, surface_correction=None):
     """Net (Fx, Fz, torque), each (S,), N and N m. Uses the compiled kernel for a
-    :class:`FourierFit`, NumPy for any other stress model."""
+    :class:`FourierFit`, NumPy for any other stress model or with ``dynamic=(lambda, rho)``
+    or a ``surface_correction`` hook (dynamic RFT, see :func:`element_forces`)."""
     el = leg.elements() if isinstance(leg, Leg) else leg
+    if (dynamic is not None and dynamic[0]) or surface_correction is not None:
+        return _net_numpy(el, traj, model, surface, dynamic, surface_correction)
     if isinstance(model, FourierFit):
         # Elements are immutable: pack once and keep the packed arrays with them.
         packed = el.__dict__.get("_packed")
