@@ -23,7 +23,7 @@ app = typer.Typer(
     context_settings={"help_option_names": ["-h", "--help"]},
 )
 
-_AREAS = ("rft", "study", "sph", "dddas", "experiment", "sweep")
+_AREAS = ("rft", "study", "sph", "dddas", "experiment", "sweep", "mujoco")
 
 
 def _register_all() -> None:

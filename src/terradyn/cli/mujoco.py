@@ -1,0 +1,128 @@
+"""``terradyn mujoco``: granular terrain (3D RFT) for MuJoCo robots - the walking-robot demo
+and a single foot pressed into the bed."""
+from __future__ import annotations
+
+import json
+from dataclasses import asdict
+from pathlib import Path
+from typing import Optional
+
+import typer
+
+mj_app = typer.Typer(help="Granular terrain (3D RFT) for MuJoCo robot models: demo robot, foot press.",
+                     no_args_is_help=True)
+
+_MEDIA_HELP = "poppy LP, poppy CP, 0.3 mm glass LP, 0.3 mm glass CP, 3 mm glass CP"
+
+
+def _require_mujoco():
+    import os
+
+    from ..errors import InputError
+
+    os.environ.setdefault("MUJOCO_GL", "egl")  # offscreen GL: must be set before mujoco is imported
+    try:
+        import mujoco  # noqa: F401
+    except ImportError:
+        raise InputError("mujoco", "the 'mujoco' package is not installed: pip install 'terradyn[mujoco]'") from None
+
+
+@mj_app.command("demo")
+def demo_cmd(
+    out: Path = typer.Option(..., "--out", "-o", help="Directory for the table, figure, GIF and MJCF files."),
+    robot: str = typer.Option("hexapod", "--robot", help="Demo robot (hexapod: six rotating arc legs, RHex-like)."),
+    leg: list[str] = typer.Option([], "--leg", help="Leg shapes to run (repeat): c, flat, reverse-c [default: all three]."),
+    medium: list[str] = typer.Option([], "--medium", help=f"Media (repeat): {_MEDIA_HELP} [default: poppy LP, 3 mm glass CP]."),
+    duration_s: float = typer.Option(5.0, "--duration-s", help="Simulated time per run, s."),
+    settle_s: float = typer.Option(1.5, "--settle-s", help="Start-up time left out of the speed, s."),
+    gif: bool = typer.Option(True, "--gif/--no-gif", help="Render a GIF offscreen (MUJOCO_GL=egl or osmesa)."),
+    gif_duration_s: float = typer.Option(3.0, "--gif-duration-s", help="Simulated time in the GIF, s."),
+):
+    """Walk the demo hexapod with C, flat and reverse-C legs on granular media (3D RFT ground
+    in MuJoCo): speed table (mujoco_demo.csv/.json), figure (mujoco_demo_speed.png), GIF
+    (mujoco_demo.gif, offscreen; skipped with the reason if no GL is available here) and the
+    robots' MJCF files, all in OUT."""
+    from ..errors import InputError, choice, in_range, positive
+    from ..io import atomic_write_text, check_writable
+    from ..media import MEDIA
+    from . import err
+
+    _require_mujoco()
+    from ..adapters import mujoco_demo as md
+
+    choice("robot", robot, md.ROBOTS)
+    legs = tuple(leg) or md.LEG_SHAPES
+    media = tuple(medium) or md.DEMO_MEDIA
+    for x in legs:
+        choice("leg", x, md.LEG_SHAPES)
+    for x in media:
+        choice("medium", x, list(MEDIA))
+    positive("duration-s", duration_s, "s")
+    in_range("settle-s", settle_s, 0.0, 0.9 * duration_s, "s (below 0.9 x --duration-s)")
+    positive("gif-duration-s", gif_duration_s, "s")
+    if out.exists() and not out.is_dir():
+        raise InputError("out", f"{out} exists and is not a directory")
+    check_writable(out, "out", directory=True)
+    out.mkdir(parents=True, exist_ok=True)
+
+    for x in legs:
+        atomic_write_text(out / f"{robot}_{x}.xml", md.hexapod_mjcf(x))
+    results = md.walk_study(legs, media, duration_s, settle_s, progress=lambda m: err(f"[dim]{m}[/]"))
+    rows = md.study_table(results)
+    csv = ["leg,medium,speed_cm_s,speed_body_lengths_s,stride_cm,mean_torso_height_cm,heading_change_deg,"
+           "max_tilt_deg,sim_to_wall,terrain_share_of_wall"]
+    for r in results:
+        csv.append(f"{r.leg},{r.medium},{r.speed_m_s * 100:.4g},{r.speed_body_lengths_s:.4g},{r.stride_m * 100:.4g},"
+                   f"{r.mean_torso_height_m * 100:.4g},{r.heading_change_deg:.3g},{r.max_tilt_deg:.3g},"
+                   f"{r.sim_to_wall:.4g},{r.terrain_s / r.wall_s:.3g}")
+    atomic_write_text(out / "mujoco_demo.csv", "\n".join(csv) + "\n")
+    md.plot_study(results, out / "mujoco_demo_speed.png")
+    gif_info = {"written": False, "reason": "--no-gif"}
+    if gif:
+        ok, msg = md.render_gif(out / "mujoco_demo.gif", legs[0], media[0], gif_duration_s)
+        gif_info = {"written": ok, "leg": legs[0], "medium": media[0], ("info" if ok else "reason"): msg}
+        err(f"GIF: {msg}" if ok else f"[yellow]GIF skipped:[/] {msg}")
+    ordering = {m: [r.leg for r in sorted((r for r in results if r.medium == m), key=lambda r: -r.speed_m_s)]
+                for m in media}
+    doc = {"robot": robot, "robot_parameters": asdict(md.HEXAPOD), "runs": rows,
+           "speed_ordering_fastest_first": ordering, "gif": gif_info,
+           "li2013_comparison": md.LI2013_NOTE}
+    atomic_write_text(out / "mujoco_demo.json", json.dumps(doc, indent=1) + "\n")
+    for m, o in ordering.items():
+        err(f"{m}: fastest to slowest: {', '.join(o)}")
+    err(f"wrote {out}/mujoco_demo.csv, .json, _speed.png" + (", .gif" if gif_info["written"] else ""))
+
+
+@mj_app.command("press")
+def press_cmd(
+    load_n: float = typer.Option(20.0, "--load-n", help="Vertical load on the foot, N (its weight comes on top)."),
+    medium: str = typer.Option("3 mm glass CP", "--medium", help=f"Medium: {_MEDIA_HELP}."),
+    length_cm: float = typer.Option(6.0, "--length-cm", help="Foot length, cm."),
+    width_cm: float = typer.Option(4.0, "--width-cm", help="Foot width, cm."),
+    thickness_cm: float = typer.Option(0.4, "--thickness-cm", help="Foot thickness, cm."),
+    mass_kg: float = typer.Option(0.2, "--mass-kg", help="Foot mass, kg."),
+    ramp_s: float = typer.Option(3.0, "--ramp-s", help="Time over which the load rises from 0, s."),
+    hold_s: float = typer.Option(0.5, "--hold-s", help="Time the full load is held, s."),
+):
+    """Press a flat box foot into the bed (MuJoCo + 3D RFT) and print its sinkage against the
+    closed-form RFT equilibrium depth (JSON on stdout, depths in cm)."""
+    from ..errors import choice, in_range, positive
+    from ..media import MEDIA
+
+    _require_mujoco()
+    from ..adapters import mujoco_demo as md
+
+    choice("medium", medium, list(MEDIA))
+    size = tuple(positive(k, v, "cm") / 100 for k, v in (("length-cm", length_cm), ("width-cm", width_cm),
+                                                          ("thickness-cm", thickness_cm)))
+    res = md.press_foot(medium, positive("load-n", load_n, "N"), size, positive("mass-kg", mass_kg, "kg"),
+                        in_range("ramp-s", ramp_s, 0.0, 60.0, "s"), in_range("hold-s", hold_s, 0.0, 60.0, "s"))
+    exp = res["expected_depth_m"]
+    typer.echo(json.dumps({"medium": medium, "load_N": load_n, "weight_N": res["weight_N"],
+                           "sinkage_cm": res["final_depth_m"] * 100,
+                           "closed_form_cm": None if exp is None else exp * 100,
+                           "relative_difference": res["relative_error"]}, indent=1))
+
+
+def register(app: typer.Typer) -> None:
+    app.add_typer(mj_app, name="mujoco")
