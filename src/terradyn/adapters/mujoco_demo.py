@@ -130,7 +130,7 @@ def hexapod_mjcf(leg: str = "c", robot: Hexapod = HEXAPOD) -> str:
   <asset>
     <mesh name="leg" vertex="{vert}" face="{face}"/>
     <texture name="grain" type="2d" builtin="checker" rgb1="0.82 0.74 0.55" rgb2="0.74 0.66 0.48" width="64" height="64"/>
-    <material name="bed" texture="grain" texrepeat="40 40"/>
+    <material name="bed" texture="grain" texrepeat="40 40" rgba="1 1 1 0.55"/>
   </asset>
   <worldbody>
     <light pos="0 -0.5 1.5" dir="0 0.3 -1" directional="true"/>
@@ -284,7 +284,7 @@ def plot_study(results: list[WalkResult], path) -> None:
         ax.bar(np.arange(len(legs)) + (j - (len(media) - 1) / 2) * wbar, vals, wbar, label=med)
     ax.set_xticks(np.arange(len(legs)), [{"c": "C", "flat": "flat", "reverse-c": "reverse C"}.get(x, x) for x in legs])
     ax.set_xlabel("leg shape")
-    ax.set_ylabel("forward speed (cm/s)")
+    ax.set_ylabel("speed along the path (cm/s)")
     ax.axhline(0, color="k", lw=0.6)
     ax.set_title("Demo hexapod on granular media (3D RFT in MuJoCo)", fontsize=10)
     ax.legend(title="medium", fontsize=8)
