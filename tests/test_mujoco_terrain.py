@@ -67,17 +67,19 @@ def test_geom_surfaces_are_closed_and_sized():
     assert body.mesh().is_watertight
 
 
-def test_static_sinkage_equals_closed_form_rft_depth():
-    # a level box foot pressed slowly by 20 N: RFT equilibrium a_b d A + sides = load
-    res = md.press_foot(GLASS, load=20.0, ramp=3.0, hold=0.3)
-    assert res["expected_depth_m"] > 0.004  # buried: the closed form applies
+@pytest.mark.parametrize("mass, load, thickness, ramp", [(0.5, 0.0, 0.002, 4.0), (0.2, 20.0, 0.004, 3.0)])
+def test_static_sinkage_equals_closed_form_rft_depth(mass, load, thickness, ramp):
+    # a level box foot of mass m (and a load) set down slowly: a_b d A + buried sides = m g + load
+    size = (0.06, 0.04, thickness)
+    res = md.press_foot(GLASS, load=load, mass=mass, size=size, ramp=ramp, hold=0.3)
+    assert res["expected_depth_m"] > thickness  # buried: the closed form applies
     assert res["final_depth_m"] == pytest.approx(res["expected_depth_m"], rel=0.01)
     # the depth holds still once the load is constant
-    held = res["depth_m"][res["time_s"] > 3.1]
+    held = res["depth_m"][res["time_s"] > ramp + 0.1]
     assert np.ptp(held) < 1e-4 * res["expected_depth_m"] + 1e-7
     # the plain explicit force (no rest rule) ratchets deeper: the remedy is what makes it static
-    plain = md.press_foot(GLASS, load=20.0, ramp=3.0, hold=0.3, stick=False)
-    assert plain["final_depth_m"] > 1.2 * res["expected_depth_m"]
+    plain = md.press_foot(GLASS, load=load, mass=mass, size=size, ramp=ramp, hold=0.3, stick=False)
+    assert plain["final_depth_m"] > 1.1 * res["expected_depth_m"]
 
 
 def _drop(height=0.02, tilt=0.0, stick=True, dt_factor=None, duration=0.6, mass=0.05):
@@ -219,8 +221,9 @@ def test_cli_demo_writes_table_figure_and_says_about_the_gif(tmp_path):
     from terradyn.cli import main
 
     out = tmp_path / "demo"
-    rc = main(["mujoco", "demo", "--out", str(out), "--duration-s", "0.8", "--settle-s", "0.3",
-               "--leg", "c", "--leg", "flat", "--medium", "poppy LP", "--gif-duration-s", "0.3"])
+    rc = main(["mujoco", "demo", "--out", str(out), "--duration-s", "0.6", "--settle-s", "0.2",
+               "--leg", "c", "--leg", "flat", "--medium", "poppy LP", "--gif-duration-s", "0.1",
+               "--gif-width", "64"])
     assert rc == 0
     res = json.loads((out / "mujoco_demo.json").read_text())
     assert {r["leg"] for r in res["runs"]} == {"c", "flat"}
@@ -243,3 +246,22 @@ def test_cli_bad_input_exits_2(tmp_path, capsys):
     f = tmp_path / "file"
     f.write_text("x")
     assert main(["mujoco", "demo", "--out", str(f)]) == 2
+
+
+def test_cli_press_prints_sinkage_against_closed_form(capsys):
+    from terradyn.cli import main
+
+    assert main(["mujoco", "press", "--load-n", "20", "--ramp-s", "1", "--hold-s", "0.1"]) == 0
+    res = json.loads(capsys.readouterr().out)
+    assert res["sinkage_cm"] == pytest.approx(res["closed_form_cm"], rel=0.03)
+    assert main(["mujoco", "press", "--load-n", "-1"]) == 2
+
+
+def test_gif_is_skipped_with_the_reason_when_gl_is_missing(tmp_path, monkeypatch):
+    def no_gl(*a, **k):
+        raise RuntimeError("no OpenGL here")
+
+    monkeypatch.setattr(md.mujoco, "Renderer", no_gl)
+    ok, why = md.render_gif(tmp_path / "x.gif", duration=0.1)
+    assert not ok and "no OpenGL here" in why and "MUJOCO_GL" in why
+    assert not (tmp_path / "x.gif").exists()

@@ -357,12 +357,14 @@ def box_equilibrium_depth(lx: float, ly: float, lz: float, load: float, medium: 
 def press_foot(medium: str | Medium3D = "3 mm glass CP", load: float = 20.0,
                size=(0.06, 0.04, 0.004), mass: float = 0.2, ramp: float = 1.0,
                hold: float = 0.5, timestep: float = 0.001, stick: bool = True) -> dict:
-    """A level box foot (``size`` lx, ly, lz m; ``mass`` kg) pressed into the bed by a
-    vertical ``load`` N ramped up from 0 over ``ramp`` s and held for ``hold`` s. Returns the
-    time series (time s, depth m of the foot's bottom, load N) and the final depth against
-    :func:`box_equilibrium_depth` for load + weight."""
+    """A level box foot (``size`` lx, ly, lz m; ``mass`` kg) pressed into the bed by its
+    weight plus a vertical ``load`` N (>= 0), the total ramped up from 0 over ``ramp`` s and
+    held for ``hold`` s. Returns the time series (time s, depth m of the foot's bottom, total
+    vertical load N) and the final depth against :func:`box_equilibrium_depth` for load +
+    weight."""
     med = medium3d(medium) if isinstance(medium, str) else medium
-    positive("load", load, "N")
+    if in_range("load", load, 0.0, 1e6, "N") == 0 and mass <= 0:
+        raise InputError("mass", "must be > 0 kg")
     lx, ly, lz = (positive(k, v, "m") for k, v in zip(("lx", "ly", "lz"), size))
     model = mujoco.MjModel.from_xml_string(foot_mjcf(lx, ly, lz, positive("mass", mass, "kg"), timestep))
     data = mujoco.MjData(model)
@@ -370,12 +372,14 @@ def press_foot(medium: str | Medium3D = "3 mm glass CP", load: float = 20.0,
     mujoco.mj_forward(model, data)
     n = int(round((ramp + hold) / timestep))
     t, depth, applied = np.empty(n), np.empty(n), np.empty(n)
-    for i in range(n):
-        P = load * min(1.0, data.time / ramp) if ramp > 0 else load
-        data.xfrc_applied[1, 2] = -P
-        terrain.step(data)
-        t[i], depth[i], applied[i] = data.time, -(data.qpos[2] - lz / 2), P
     weight = mass * -model.opt.gravity[2]
+    for i in range(n):
+        r = min(1.0, data.time / ramp) if ramp > 0 else 1.0
+        # the whole vertical load (weight + load) rises from 0: a lift (1 - r) m g holds the
+        # weight back at first, so the sinkage is quasi-static, not a drop
+        data.xfrc_applied[1, 2] = -load * r + weight * (1 - r)
+        terrain.step(data)
+        t[i], depth[i], applied[i] = data.time, -(data.qpos[2] - lz / 2), (load + weight) * r
     try:
         expected = box_equilibrium_depth(lx, ly, lz, load + weight, med)
     except InputError:  # not buried: the closed form does not apply

@@ -31,18 +31,19 @@ def _require_mujoco():
 def demo_cmd(
     out: Path = typer.Option(..., "--out", "-o", help="Directory for the table, figure, GIF and MJCF files."),
     robot: str = typer.Option("hexapod", "--robot", help="Demo robot (hexapod: six rotating arc legs, RHex-like)."),
-    leg: list[str] = typer.Option([], "--leg", help="Leg shapes to run (repeat): c, flat, reverse-c [default: all three]."),
-    medium: list[str] = typer.Option([], "--medium", help=f"Media (repeat): {_MEDIA_HELP} [default: poppy LP, 3 mm glass CP]."),
+    leg: list[str] = typer.Option([], "--leg", help="Leg shapes to run (repeat): c, flat, reverse-c (default: all three)."),
+    medium: list[str] = typer.Option([], "--medium", help=f"Media (repeat): {_MEDIA_HELP} (default: poppy LP, 3 mm glass CP)."),
     duration_s: float = typer.Option(5.0, "--duration-s", help="Simulated time per run, s."),
     settle_s: float = typer.Option(1.5, "--settle-s", help="Start-up time left out of the speed, s."),
     gif: bool = typer.Option(True, "--gif/--no-gif", help="Render a GIF offscreen (MUJOCO_GL=egl or osmesa)."),
     gif_duration_s: float = typer.Option(3.0, "--gif-duration-s", help="Simulated time in the GIF, s."),
+    gif_width: int = typer.Option(320, "--gif-width", help="GIF width, pixels (height 3/4 of it)."),
 ):
     """Walk the demo hexapod with C, flat and reverse-C legs on granular media (3D RFT ground
     in MuJoCo): speed table (mujoco_demo.csv/.json), figure (mujoco_demo_speed.png), GIF
     (mujoco_demo.gif, offscreen; skipped with the reason if no GL is available here) and the
     robots' MJCF files, all in OUT."""
-    from ..errors import InputError, choice, in_range, positive
+    from ..errors import InputError, choice, in_range, integer, positive
     from ..io import atomic_write_text, check_writable
     from ..media import MEDIA
     from . import err
@@ -60,6 +61,7 @@ def demo_cmd(
     positive("duration-s", duration_s, "s")
     in_range("settle-s", settle_s, 0.0, 0.9 * duration_s, "s (below 0.9 x --duration-s)")
     positive("gif-duration-s", gif_duration_s, "s")
+    integer("gif-width", gif_width, 16)
     if out.exists() and not out.is_dir():
         raise InputError("out", f"{out} exists and is not a directory")
     check_writable(out, "out", directory=True)
@@ -79,7 +81,8 @@ def demo_cmd(
     md.plot_study(results, out / "mujoco_demo_speed.png")
     gif_info = {"written": False, "reason": "--no-gif"}
     if gif:
-        ok, msg = md.render_gif(out / "mujoco_demo.gif", legs[0], media[0], gif_duration_s)
+        ok, msg = md.render_gif(out / "mujoco_demo.gif", legs[0], media[0], gif_duration_s,
+                                 width=gif_width, height=gif_width * 3 // 4)
         gif_info = {"written": ok, "leg": legs[0], "medium": media[0], ("info" if ok else "reason"): msg}
         err(f"GIF: {msg}" if ok else f"[yellow]GIF skipped:[/] {msg}")
     ordering = {m: [r.leg for r in sorted((r for r in results if r.medium == m), key=lambda r: -r.speed_m_s)]
@@ -115,7 +118,7 @@ def press_cmd(
     choice("medium", medium, list(MEDIA))
     size = tuple(positive(k, v, "cm") / 100 for k, v in (("length-cm", length_cm), ("width-cm", width_cm),
                                                           ("thickness-cm", thickness_cm)))
-    res = md.press_foot(medium, positive("load-n", load_n, "N"), size, positive("mass-kg", mass_kg, "kg"),
+    res = md.press_foot(medium, in_range("load-n", load_n, 0.0, 1e6, "N"), size, positive("mass-kg", mass_kg, "kg"),
                         in_range("ramp-s", ramp_s, 0.0, 60.0, "s"), in_range("hold-s", hold_s, 0.0, 60.0, "s"))
     exp = res["expected_depth_m"]
     typer.echo(json.dumps({"medium": medium, "load_N": load_n, "weight_N": res["weight_N"],
