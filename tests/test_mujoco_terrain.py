@@ -262,6 +262,5 @@ def test_gif_is_skipped_with_the_reason_when_gl_is_missing(tmp_path, monkeypatch
         raise RuntimeError("no OpenGL here")
 
     monkeypatch.setattr(md.mujoco, "Renderer", no_gl)
-    ok, why = md.render_gif(tmp_path / "x.gif", duration=0.1)
-    assert not ok and "no OpenGL here" in why and "MUJOCO_GL" in why
-    assert not (tmp_path / "x.gif").exists()
+    frames, why = md.render_frames(duration=0.1)
+    assert frames is None and "no OpenGL here" in why and "MUJOCO_GL" in why

@@ -6,9 +6,9 @@ single foot pressed into the bed.
   mesh swept from :class:`terradyn.geometry.ArcLeg`), each on a hip hinge about y driven by a
   position servo; alternating tripod gait, every leg turning full circles at a constant rate.
   The dimensions are this project's choice (:data:`HEXAPOD`), not Li 2013's robot's.
-* :func:`walk` runs one robot on one medium and returns its forward speed;
-  :func:`walk_study` runs leg shapes x media (table + figure); :func:`render_gif` renders a run
-  offscreen (``mujoco.Renderer``, EGL or OSMesa) into a GIF (Pillow).
+* :func:`walk` runs one robot on one medium and returns its speed; :func:`walk_study` runs
+  leg shapes x media; :func:`render_frames` renders a run offscreen (``mujoco.Renderer``, EGL
+  or OSMesa). The table, figure and GIF are written by ``terradyn mujoco demo``.
 * :func:`press_foot` presses a flat box foot into the bed with a slowly ramped load and
   returns its sinkage against the closed-form RFT equilibrium depth.
 
@@ -153,12 +153,14 @@ def terrain_bodies() -> tuple[str, ...]:
 
 
 def build(leg: str = "c", medium: str | Medium3D = "poppy LP", robot: Hexapod = HEXAPOD,
-          stick: bool = True):
-    """(model, data, terrain) of the demo hexapod on ``medium`` (name or Medium3D)."""
+          stick: bool = True, dynamic_lambda: float | None = None):
+    """(model, data, terrain) of the demo hexapod on ``medium`` (name or Medium3D);
+    ``dynamic_lambda``: dynamic-RFT lambda (None: quasi-static)."""
     model = mujoco.MjModel.from_xml_string(hexapod_mjcf(leg, robot))
     data = mujoco.MjData(model)
     med = medium3d(medium) if isinstance(medium, str) else medium
-    terrain = GranularTerrain(model, med, bodies=terrain_bodies(), stick=stick)
+    terrain = GranularTerrain(model, med, bodies=terrain_bodies(), stick=stick,
+                              dynamic_lambda=dynamic_lambda)
     mujoco.mj_forward(model, data)
     return model, data, terrain
 
@@ -193,14 +195,14 @@ class WalkResult:
 
 def walk(leg: str = "c", medium: str = "poppy LP", duration: float = 4.0, settle: float = 1.0,
          robot: Hexapod = HEXAPOD, frames: list | None = None, fps: float = 25.0,
-         renderer=None) -> WalkResult:
+         renderer=None, dynamic_lambda: float | None = None) -> WalkResult:
     """Run the hexapod for ``duration`` s. Speed: the torso CoM's path over ground after
     ``settle`` s, sampled once per stride (so the bobbing within a stride does not count, and
     a robot that veers is measured along its path), divided by the time; the heading change
     and the largest torso tilt are reported too. With ``renderer`` (a mujoco.Renderer), frames are appended to ``frames`` at ``fps``."""
     duration = positive("duration", duration, "s")
     settle = in_range("settle", settle, 0.0, duration * 0.9, "s")
-    model, data, terrain = build(leg, medium, robot)
+    model, data, terrain = build(leg, medium, robot, dynamic_lambda=dynamic_lambda)
     dt = model.opt.timestep
     n = int(round(duration / dt))
     n0 = int(round(settle / dt))
@@ -248,7 +250,8 @@ def walk(leg: str = "c", medium: str = "poppy LP", duration: float = 4.0, settle
 
 
 def walk_study(legs=LEG_SHAPES, media=DEMO_MEDIA, duration: float = 4.0, settle: float = 1.0,
-               robot: Hexapod = HEXAPOD, progress=None) -> list[WalkResult]:
+               robot: Hexapod = HEXAPOD, progress=None,
+               dynamic_lambda: float | None = None) -> list[WalkResult]:
     """Speed of the hexapod for each leg shape on each medium."""
     for leg in legs:
         choice("leg", leg, LEG_SHAPES)
@@ -259,7 +262,7 @@ def walk_study(legs=LEG_SHAPES, media=DEMO_MEDIA, duration: float = 4.0, settle:
     out = []
     for m in media:
         for leg in legs:
-            r = walk(leg, m, duration, settle, robot)
+            r = walk(leg, m, duration, settle, robot, dynamic_lambda=dynamic_lambda)
             if progress:
                 progress(f"{leg:9s} on {m:14s}: {r.speed_m_s * 100:6.2f} cm/s "
                          f"({r.sim_to_wall:.1f}x real time)")
@@ -271,55 +274,27 @@ def study_table(results: list[WalkResult]) -> list[dict]:
     return [{**asdict(r), "sim_to_wall": r.sim_to_wall} for r in results]
 
 
-def plot_study(results: list[WalkResult], path) -> None:
-    """Bar chart: speed (cm/s) against leg shape, one group per medium."""
-    import matplotlib.pyplot as plt
-
-    media = list(dict.fromkeys(r.medium for r in results))
-    legs = list(dict.fromkeys(r.leg for r in results))
-    fig, ax = plt.subplots(figsize=(5.5, 3.6), constrained_layout=True)
-    wbar = 0.8 / len(media)
-    for j, med in enumerate(media):
-        vals = [next(r.speed_m_s for r in results if r.leg == lg and r.medium == med) * 100 for lg in legs]
-        ax.bar(np.arange(len(legs)) + (j - (len(media) - 1) / 2) * wbar, vals, wbar, label=med)
-    ax.set_xticks(np.arange(len(legs)), [{"c": "C", "flat": "flat", "reverse-c": "reverse C"}.get(x, x) for x in legs])
-    ax.set_xlabel("leg shape")
-    ax.set_ylabel("speed along the path (cm/s)")
-    ax.axhline(0, color="k", lw=0.6)
-    ax.set_title("Demo hexapod on granular media (3D RFT in MuJoCo)", fontsize=10)
-    ax.legend(title="medium", fontsize=8)
-    fig.savefig(path, dpi=150)
-    plt.close(fig)
-
-
-def render_gif(path, leg: str = "c", medium: str = "poppy LP", duration: float = 3.0,
-               robot: Hexapod = HEXAPOD, width: int = 320, height: int = 240, fps: float = 20.0):
-    """Render a walk offscreen into a GIF. Returns (True, message) or (False, the reason it
-    could not render) - never raises for a missing GL stack."""
+def render_frames(leg: str = "c", medium: str = "poppy LP", duration: float = 3.0,
+                  robot: Hexapod = HEXAPOD, width: int = 320, height: int = 240, fps: float = 20.0,
+                  dynamic_lambda: float | None = None):
+    """Render a walk offscreen (``mujoco.Renderer``; GL backend from ``MUJOCO_GL``, egl by
+    default here). Returns (frames, message): a list of (height, width, 3) uint8 RGB arrays,
+    or (None, the reason it could not render) - never raises for a missing GL stack."""
     try:
         model = mujoco.MjModel.from_xml_string(hexapod_mjcf(leg, robot))
         renderer = mujoco.Renderer(model, height, width)
     except Exception as e:  # noqa: BLE001 - any GL failure means: no rendering here
         import os
 
-        return False, (f"offscreen rendering is not available (MUJOCO_GL={os.environ.get('MUJOCO_GL')!r}: "
-                       f"{type(e).__name__}: {e}); install EGL (libegl1, libegl-mesa0, libgl1-mesa-dri) "
-                       f"or OSMesa (libosmesa6) and set MUJOCO_GL=egl or osmesa")
+        return None, (f"offscreen rendering is not available (MUJOCO_GL={os.environ.get('MUJOCO_GL')!r}: "
+                      f"{type(e).__name__}: {e}); install EGL (libegl1, libegl-mesa0, libgl1-mesa-dri) "
+                      f"or OSMesa (libosmesa6) and set MUJOCO_GL=egl or osmesa")
     frames: list = []
     try:
-        walk(leg, medium, duration, min(0.5, duration / 2), robot, frames, fps, renderer)
+        walk(leg, medium, duration, min(0.5, duration / 2), robot, frames, fps, renderer, dynamic_lambda)
     finally:
         renderer.close()
-    from PIL import Image
-
-    from ..io import check_writable
-
-    check_writable(path, "gif")
-    imgs = [Image.fromarray(f) for f in frames]
-    tmp = path.with_name(f".{path.name}.tmp.gif")
-    imgs[0].save(tmp, save_all=True, append_images=imgs[1:], duration=int(1000 / fps), loop=0)
-    tmp.replace(path)
-    return True, f"{len(frames)} frames, {width}x{height}, {fps:g} fps"
+    return frames, f"{len(frames)} frames, {width}x{height}, {fps:g} fps"
 
 
 # ------------------------------------------------------------------------------------------
@@ -395,6 +370,6 @@ def study_json(results: list[WalkResult], extra: dict) -> str:
 
 
 __all__ = ["ROBOTS", "LEG_SHAPES", "DEMO_MEDIA", "Hexapod", "HEXAPOD", "hexapod_mjcf", "leg_mesh",
-           "build", "walk", "walk_study", "plot_study", "render_gif", "press_foot",
+           "build", "walk", "walk_study", "render_frames", "press_foot",
            "box_equilibrium_depth", "foot_mjcf", "terrain_bodies", "gait_targets", "WalkResult",
            "study_table", "study_json"]

@@ -27,6 +27,40 @@ def _require_mujoco():
         raise InputError("mujoco", "the 'mujoco' package is not installed: pip install 'terradyn[mujoco]'") from None
 
 
+def _plot_study(results, path) -> None:
+    """Bar chart: speed (cm/s) against leg shape, one group per medium."""
+    import matplotlib.pyplot as plt
+    import numpy as np
+
+    media = list(dict.fromkeys(r.medium for r in results))
+    legs = list(dict.fromkeys(r.leg for r in results))
+    fig, ax = plt.subplots(figsize=(5.5, 3.6), constrained_layout=True)
+    wbar = 0.8 / len(media)
+    for j, med in enumerate(media):
+        vals = [next(r.speed_m_s for r in results if r.leg == lg and r.medium == med) * 100 for lg in legs]
+        ax.bar(np.arange(len(legs)) + (j - (len(media) - 1) / 2) * wbar, vals, wbar, label=med)
+    ax.set_xticks(np.arange(len(legs)), [{"c": "C", "flat": "flat", "reverse-c": "reverse C"}.get(x, x) for x in legs])
+    ax.set_xlabel("leg shape")
+    ax.set_ylabel("speed along the path (cm/s)")
+    ax.axhline(0, color="k", lw=0.6)
+    ax.set_title("Demo hexapod on granular media (3D RFT in MuJoCo)", fontsize=10)
+    ax.legend(title="medium", fontsize=8)
+    fig.savefig(path, dpi=150)
+    plt.close(fig)
+
+
+def _write_gif(path: Path, frames, fps: float) -> None:
+    from PIL import Image
+
+    imgs = [Image.fromarray(f) for f in frames]
+    tmp = path.with_name(f".{path.name}.tmp.gif")
+    try:
+        imgs[0].save(tmp, save_all=True, append_images=imgs[1:], duration=int(1000 / fps), loop=0)
+        tmp.replace(path)
+    finally:
+        tmp.unlink(missing_ok=True)
+
+
 @mj_app.command("demo")
 def demo_cmd(
     out: Path = typer.Option(..., "--out", "-o", help="Directory for the table, figure, GIF and MJCF files."),
@@ -38,6 +72,7 @@ def demo_cmd(
     gif: bool = typer.Option(True, "--gif/--no-gif", help="Render a GIF offscreen (MUJOCO_GL=egl or osmesa)."),
     gif_duration_s: float = typer.Option(3.0, "--gif-duration-s", help="Simulated time in the GIF, s."),
     gif_width: int = typer.Option(320, "--gif-width", help="GIF width, pixels (height 3/4 of it)."),
+    dynamic_lambda: Optional[float] = typer.Option(None, "--dynamic-lambda", help="Dynamic-RFT lambda (e.g. 1.1; default: quasi-static RFT)."),
 ):
     """Walk the demo hexapod with C, flat and reverse-C legs on granular media (3D RFT ground
     in MuJoCo): speed table (mujoco_demo.csv/.json), figure (mujoco_demo_speed.png), GIF
@@ -62,6 +97,8 @@ def demo_cmd(
     in_range("settle-s", settle_s, 0.0, 0.9 * duration_s, "s (below 0.9 x --duration-s)")
     positive("gif-duration-s", gif_duration_s, "s")
     integer("gif-width", gif_width, 16)
+    if dynamic_lambda is not None:
+        in_range("dynamic-lambda", dynamic_lambda, 0.0, 10.0)
     if out.exists() and not out.is_dir():
         raise InputError("out", f"{out} exists and is not a directory")
     check_writable(out, "out", directory=True)
@@ -69,7 +106,8 @@ def demo_cmd(
 
     for x in legs:
         atomic_write_text(out / f"{robot}_{x}.xml", md.hexapod_mjcf(x))
-    results = md.walk_study(legs, media, duration_s, settle_s, progress=lambda m: err(f"[dim]{m}[/]"))
+    results = md.walk_study(legs, media, duration_s, settle_s, progress=lambda m: err(f"[dim]{m}[/]"),
+                            dynamic_lambda=dynamic_lambda or None)
     rows = md.study_table(results)
     csv = ["leg,medium,speed_cm_s,speed_body_lengths_s,stride_cm,mean_torso_height_cm,heading_change_deg,"
            "max_tilt_deg,sim_to_wall,terrain_share_of_wall"]
@@ -78,16 +116,21 @@ def demo_cmd(
                    f"{r.mean_torso_height_m * 100:.4g},{r.heading_change_deg:.3g},{r.max_tilt_deg:.3g},"
                    f"{r.sim_to_wall:.4g},{r.terrain_s / r.wall_s:.3g}")
     atomic_write_text(out / "mujoco_demo.csv", "\n".join(csv) + "\n")
-    md.plot_study(results, out / "mujoco_demo_speed.png")
+    _plot_study(results, out / "mujoco_demo_speed.png")
     gif_info = {"written": False, "reason": "--no-gif"}
     if gif:
-        ok, msg = md.render_gif(out / "mujoco_demo.gif", legs[0], media[0], gif_duration_s,
-                                 width=gif_width, height=gif_width * 3 // 4)
+        fps = 20.0
+        frames, msg = md.render_frames(legs[0], media[0], gif_duration_s, width=gif_width,
+                                       height=gif_width * 3 // 4, fps=fps,
+                                       dynamic_lambda=dynamic_lambda or None)
+        ok = frames is not None
+        if ok:
+            _write_gif(out / "mujoco_demo.gif", frames, fps)
         gif_info = {"written": ok, "leg": legs[0], "medium": media[0], ("info" if ok else "reason"): msg}
         err(f"GIF: {msg}" if ok else f"[yellow]GIF skipped:[/] {msg}")
     ordering = {m: [r.leg for r in sorted((r for r in results if r.medium == m), key=lambda r: -r.speed_m_s)]
                 for m in media}
-    doc = {"robot": robot, "robot_parameters": asdict(md.HEXAPOD), "runs": rows,
+    doc = {"robot": robot, "robot_parameters": asdict(md.HEXAPOD), "dynamic_lambda": dynamic_lambda, "runs": rows,
            "speed_ordering_fastest_first": ordering, "gif": gif_info,
            "li2013_comparison": md.LI2013_NOTE}
     atomic_write_text(out / "mujoco_demo.json", json.dumps(doc, indent=1) + "\n")
