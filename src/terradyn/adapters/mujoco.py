@@ -23,27 +23,30 @@ the collision bits they share (``geom_contype`` / ``geom_conaffinity``, in place
 their contacts with anything else that uses other bits are kept.
 
 Stiffness and the time step (see docs/mujoco.md): the terrain force is explicit, with a
-stiffness ``k = xi_n |a|max A`` (N/m) per body, A = half the body's surface area (a bound on
-its projected area in any direction) and ``|a|max`` the largest generic stress per depth over
-all directions. MuJoCo's semi-implicit Euler with this explicit spring is stable when
-``omega dt < 2``, ``omega = sqrt(k / m_eff)`` with ``m_eff`` the body's effective mass in the
-model (from MuJoCo's inverse mass matrix, the robot's joints included).
-:meth:`GranularTerrain.stable_timestep` returns ``safety * 2 / max omega`` (default safety 0.5,
-i.e. omega dt <= 1) and :meth:`GranularTerrain.step` takes ``substeps`` to split a model step
-that is longer than that.
+stiffness per body ``k <= xi_n |a|max A / 2`` (N/m), A the body's surface area (A/2 bounds its
+projected area in any direction) and ``|a|max`` the largest generic stress per depth over all
+directions (:func:`max_generic_stress`). MuJoCo's semi-implicit Euler with this explicit
+spring is stable when ``omega dt < 2``, ``omega = sqrt(k / m_eff)`` with ``m_eff`` the body's
+smallest effective mass in the model (from MuJoCo's inverse mass matrix, the robot's joints
+included). :meth:`GranularTerrain.stable_timestep` returns ``safety * 2 / max omega``
+(default safety 0.5, i.e. omega dt <= 1) and :meth:`GranularTerrain.step` takes ``substeps``
+to split a model step that is longer than that.
 
 Rest and chatter (``stick=True``, the default): RFT is rate-independent, a yield force that
 depends on the direction of motion only, so a body at rest on the bed is an explicit
 integrator's worst case - the force flips with the sign of a tiny velocity, the body
-chatters at about g dt and ratchets deeper. With ``stick`` the wrench of each body is
-evaluated at the velocity it would have at the end of the step without the terrain
-(``qvel + dt qacc_smooth``: gravity, actuators, the user's forces), and where the part of the
-force opposing that motion would more than stop the body's CoM within the step (impulse >
-m_eff |v|), the wrench is scaled down to the force that just stops it - the discrete form of a
-plastic (Coulomb-like) resistance. A loaded body then rests exactly, at the quasi-static RFT
-depth when loaded slowly, and the terrain never reverses a body's motion. It costs MuJoCo's
-acceleration stage once more per step (``mj_fwdActuation`` + ``mj_fwdAcceleration`` + two
-``mj_comVel``); ``stick=False`` is the plain explicit force.
+chatters at about g dt and ratchets deeper. With ``stick`` each body's wrench is evaluated
+at the twist it would have at the end of the step without the terrain (``qvel + dt
+qacc_smooth``: gravity, actuators, springs, the user's forces), and where its impulse along
+the wrench would more than stop that twist (in the body's kinetic-energy metric), the body is
+held: the wrench that stops its whole predicted twist is applied if it is no stronger than
+the RFT wrench, else the RFT wrench is scaled down to the one that just stops the twist along
+it - the discrete form of a plastic (Coulomb-like) resistance. A loaded body then rests
+exactly, at the quasi-static RFT depth when loaded slowly, and the terrain never reverses a
+body's motion. It costs MuJoCo's actuation and acceleration stages once more per step
+(``mj_fwdActuation`` + ``mj_fwdAcceleration``); ``stick=False`` is the plain explicit force.
+
+The compiled kernel uses the default 3D-RFT coefficient table (``rft3d.coefficients()``).
 
 Units SI; world z up; MuJoCo quaternions are (w, x, y, z) like :mod:`terradyn.rft3d`.
 """
@@ -261,6 +264,7 @@ def _terrain_wrenches(G, meta, anc, S, T, xpos, xmat, xipos, cvel, subtree_com, 
                         else:
                             for k in range(6):
                                 out[b, k] *= sc
+
 
 _ENTRY: list = []
 
