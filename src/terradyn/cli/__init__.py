@@ -133,7 +133,7 @@ app = typer.Typer(
     context_settings={"help_option_names": ["-h", "--help"]},
 )
 
-_AREAS = ("rft", "rft3d", "study", "sph", "dddas", "experiment", "sweep", "reproduce")
+_AREAS = ("rft", "rft3d", "study", "sph", "dddas", "experiment", "sweep", "mujoco", "reproduce")
 _REGISTERED: list = []
 
 

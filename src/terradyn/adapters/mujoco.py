@@ -1,0 +1,549 @@
+"""Granular terrain for MuJoCo: 3D-RFT forces on chosen bodies of any robot model.
+
+A :class:`GranularTerrain` is bound to a compiled ``mujoco.MjModel``, the bodies (or geoms)
+that touch the ground, a medium (:func:`terradyn.rft3d.medium3d`) and the height of the bed's
+free surface. Each physics step (:meth:`GranularTerrain.step`):
+
+1. ``mj_step1`` - positions and velocities of the current state (``xpos``, ``xmat``,
+   ``xipos``, ``cvel``);
+2. the 3D-RFT wrench of every terrain body's geoms (one compiled call for all bodies; the
+   per-element law is :mod:`terradyn.rft3d`'s kernel, optionally with the dynamic-RFT term) is
+   **added** to ``data.xfrc_applied`` - force in the world frame and the torque about the
+   body's centre of mass, i.e. the RFT moment of the element forces about the CoM, not about
+   the contact;
+3. ``mj_step2`` - integration; then the terrain wrench is taken out of ``xfrc_applied`` again,
+   so the user's own applied forces there are kept.
+
+Geoms: boxes, capsules, cylinders, spheres, ellipsoids and meshes are turned into closed
+triangle meshes in the body frame (trimesh), all geoms of one body into one
+:class:`terradyn.rft3d.Body`. Geoms of one body should not overlap much (faces inside another
+geom would still feel the medium). Rigid contact between the terrain geoms and the floor geoms
+(by default the plane and height-field geoms of the world body) is switched off by clearing
+the collision bits they share (``geom_contype`` / ``geom_conaffinity``, in place on the model);
+their contacts with anything else that uses other bits are kept.
+
+Stiffness and the time step (see docs/mujoco.md): the terrain force is explicit, with a
+stiffness per body ``k <= xi_n |a|max A / 2`` (N/m), A the body's surface area (A/2 bounds its
+projected area in any direction) and ``|a|max`` the largest generic stress per depth over all
+directions (:func:`max_generic_stress`). MuJoCo's semi-implicit Euler with this explicit
+spring is stable when ``omega dt < 2``, ``omega = sqrt(k / m_eff)`` with ``m_eff`` the body's
+smallest effective mass in the model (from MuJoCo's inverse mass matrix, the robot's joints
+included). :meth:`GranularTerrain.stable_timestep` returns ``safety * 2 / max omega``
+(default safety 0.5, i.e. omega dt <= 1) and :meth:`GranularTerrain.step` takes ``substeps``
+to split a model step that is longer than that.
+
+Rest and chatter (``stick=True``, the default): RFT is rate-independent, a yield force that
+depends on the direction of motion only, so a body at rest on the bed is an explicit
+integrator's worst case - the force flips with the sign of a tiny velocity, the body
+chatters at about g dt and ratchets deeper. With ``stick`` each body's wrench is evaluated
+at the twist it would have at the end of the step without the terrain (``qvel + dt
+qacc_smooth``: gravity, actuators, springs, the user's forces), and where its impulse along
+the wrench would more than stop that twist (in the body's kinetic-energy metric), the body is
+held: the wrench that stops its whole predicted twist is applied if it is no stronger than
+the RFT wrench, else the RFT wrench is scaled down to the one that just stops the twist along
+it - the discrete form of a plastic (Coulomb-like) resistance. A loaded body then rests
+exactly, at the quasi-static RFT depth when loaded slowly, and the terrain never reverses a
+body's motion. It costs MuJoCo's actuation and acceleration stages once more per step
+(``mj_fwdActuation`` + ``mj_fwdAcceleration``); ``stick=False`` is the plain explicit force.
+
+The compiled kernel uses the default 3D-RFT coefficient table (``rft3d.coefficients()``).
+
+Units SI; world z up; MuJoCo quaternions are (w, x, y, z) like :mod:`terradyn.rft3d`.
+"""
+from __future__ import annotations
+
+import os
+
+os.environ.setdefault("MUJOCO_GL", "egl")  # offscreen GL; read when mujoco is first imported
+
+import math
+from dataclasses import dataclass, field
+
+import numba
+import numpy as np
+
+from ..errors import InputError, finite, positive
+from ..rft3d import Body, Medium3D, from_trimesh, rotation_matrices
+from ..rft3d.engine import _element_force, _params
+from ..rft3d.model import cap_tangential, coefficients, generic_alpha
+
+#: The 3D-RFT coefficient table (a compile-time constant of the step kernel).
+_COEF = coefficients()
+
+try:
+    import mujoco
+except ImportError as e:  # pragma: no cover - the extra is installed by the test extra
+    raise ImportError("terradyn.adapters.mujoco needs the 'mujoco' package: "
+                      "pip install 'terradyn[mujoco]'") from e
+
+GEOM_TYPES = {int(mujoco.mjtGeom.mjGEOM_BOX): "box", int(mujoco.mjtGeom.mjGEOM_CAPSULE): "capsule",
+              int(mujoco.mjtGeom.mjGEOM_CYLINDER): "cylinder", int(mujoco.mjtGeom.mjGEOM_SPHERE): "sphere",
+              int(mujoco.mjtGeom.mjGEOM_ELLIPSOID): "ellipsoid", int(mujoco.mjtGeom.mjGEOM_MESH): "mesh"}
+FLOOR_TYPES = (int(mujoco.mjtGeom.mjGEOM_PLANE), int(mujoco.mjtGeom.mjGEOM_HFIELD))
+
+
+# ------------------------------------------------------------------------------------------
+# Geoms -> triangle meshes in the body frame
+# ------------------------------------------------------------------------------------------
+def _geom_trimesh(model, g: int, max_edge: float, sections: int):
+    """The geom's surface as a trimesh in its body's frame (m)."""
+    import trimesh
+
+    kind = GEOM_TYPES.get(int(model.geom_type[g]))
+    name = model.geom(g).name or f"#{g}"
+    if kind is None:
+        raise InputError("geoms", f"geom {name!r} has type {mujoco.mjtGeom(model.geom_type[g]).name}; "
+                                  f"terrain geoms must be one of: {', '.join(GEOM_TYPES.values())}")
+    s = np.asarray(model.geom_size[g], float)
+    if kind == "box":
+        tm = trimesh.creation.box(extents=2 * s)
+    elif kind == "capsule":
+        tm = trimesh.creation.capsule(height=2 * s[1], radius=s[0], count=[sections, sections])
+    elif kind == "cylinder":
+        tm = trimesh.creation.cylinder(radius=s[0], height=2 * s[1], sections=sections)
+    elif kind == "sphere":
+        tm = trimesh.creation.icosphere(subdivisions=2, radius=s[0])
+    elif kind == "ellipsoid":
+        tm = trimesh.creation.icosphere(subdivisions=2, radius=1.0)
+        tm.vertices = tm.vertices * s
+    else:
+        mid = int(model.geom_dataid[g])
+        a, n = int(model.mesh_vertadr[mid]), int(model.mesh_vertnum[mid])
+        fa, fn = int(model.mesh_faceadr[mid]), int(model.mesh_facenum[mid])
+        tm = trimesh.Trimesh(np.array(model.mesh_vert[a:a + n], float),
+                             np.array(model.mesh_face[fa:fa + fn], np.int64), process=False)
+    if kind in ("box", "capsule", "cylinder") and max_edge:
+        v, f = trimesh.remesh.subdivide_to_size(tm.vertices, tm.faces, max_edge, max_iter=20)
+        tm = trimesh.Trimesh(v, f, process=False)
+    if kind == "capsule":  # trimesh's capsule may not be centred on the origin
+        lo, hi = tm.bounds
+        tm.vertices = tm.vertices - (lo + hi) / 2
+    R = rotation_matrices(np.asarray(model.geom_quat[g], float))
+    return trimesh.Trimesh(np.asarray(tm.vertices) @ R.T + model.geom_pos[g], tm.faces, process=False)
+
+
+def body_surface(model, geoms: list[int], name: str, max_edge: float | None = None,
+                 sections: int = 16) -> Body:
+    """One :class:`terradyn.rft3d.Body` (body frame) from the geoms of one MuJoCo body."""
+    import trimesh
+
+    parts = [_geom_trimesh(model, g, max_edge, sections) for g in geoms]
+    tm = parts[0] if len(parts) == 1 else trimesh.util.concatenate(parts)
+    return from_trimesh(tm, name, require_closed=True, field=f"geoms of body {name!r}",
+                        info={"geoms": [model.geom(g).name for g in geoms]})
+
+
+def _max_generic_stress(n_dir: int = 400) -> float:
+    """Largest |generic stress per depth| (dimensionless, capped at mu_surf = 1) over many
+    (normal, direction) pairs with n . v >= 0 - the bound in the stiffness rule."""
+    i = np.arange(n_dir) + 0.5
+    z = 1 - 2 * i / n_dir
+    phi = np.pi * (1 + 5 ** 0.5) * i
+    u = np.column_stack([np.sqrt(1 - z * z) * np.cos(phi), np.sqrt(1 - z * z) * np.sin(phi), z])
+    n = np.repeat(u, n_dir, 0)
+    v = np.tile(u, (n_dir, 1))
+    ok = np.einsum("ij,ij->i", n, v) >= 0
+    a = cap_tangential(generic_alpha(n[ok], v[ok]), n[ok], 1.0)
+    return float(np.linalg.norm(a, axis=1).max())
+
+
+_A_MAX: list[float] = []
+
+
+def max_generic_stress() -> float:
+    if not _A_MAX:
+        _A_MAX.append(_max_generic_stress())
+    return _A_MAX[0]
+
+
+# ------------------------------------------------------------------------------------------
+# Compiled step: all terrain bodies in one call
+# ------------------------------------------------------------------------------------------
+@numba.njit(cache=True, fastmath=True, error_model="numpy")
+def _terrain_wrenches(G, meta, anc, S, T, xpos, xmat, xipos, cvel, subtree_com, cdof, qacc,
+                      surface, stick_dt, out):  # pragma: no cover - compiled
+    """RFT wrench (about the CoM, world frame) of every terrain body into out (nb, 6).
+
+    G (n, 7) elements of all bodies, body b's in [meta[b, 2], meta[b, 3]); meta[b, 0] body
+    id, meta[b, 1] its root body, meta[b, 4:6] its range in ``anc`` (the dofs that move it).
+    S (nb, 76) static floats per body: [0] the largest element distance from the body origin
+    (bodies wholly above the surface are skipped), [1:4] xi_n, mu_surf, lambda rho, [4:40] the
+    6 x 6 mobility J M^-1 J^T of the CoM twist (v, omega) in the body frame, [40:76] its
+    (pseudo-)inverse, the effective inertia M_b. T (nb, 22) pose
+    rows (scratch).
+    cdof (nv, 6), qacc (nv,): with stick_dt > 0 the body twists are the predicted ones,
+    cvel + stick_dt * sum(cdof qacc) (qacc = qacc_smooth), and the no-reversal cap applies:
+    where the wrench's impulse would more than stop that twist along the wrench (in the
+    kinetic-energy metric), the body is held: the wrench that stops its whole twist,
+    -M_b xi / dt, is applied if it is no stronger than the RFT wrench (in the same metric),
+    else the RFT wrench scaled down to the one that just stops the twist along it."""
+    C = _COEF
+    for b in range(meta.shape[0]):
+        bid = meta[b, 0]
+        for k in range(6):
+            out[b, k] = 0.0
+        if xpos[bid, 2] - S[b, 0] >= surface:
+            continue
+        root = meta[b, 1]
+        cv = np.empty(6)
+        for k in range(6):
+            cv[k] = cvel[bid, k]
+        if stick_dt > 0.0:
+            for a in range(meta[b, 4], meta[b, 5]):
+                j = anc[a]
+                for k in range(6):
+                    cv[k] += stick_dt * cdof[j, k] * qacc[j]
+        wx, wy, wz = cv[0], cv[1], cv[2]
+        dx = xpos[bid, 0] - subtree_com[root, 0]
+        dy = xpos[bid, 1] - subtree_com[root, 1]
+        dz = xpos[bid, 2] - subtree_com[root, 2]
+        for k in range(3):
+            T[b, k] = xpos[bid, k]
+            T[b, 15 + k] = cv[k]
+            T[b, 18 + k] = xipos[bid, k]
+        for k in range(9):
+            T[b, 3 + k] = xmat[bid, k]
+        T[b, 12] = cv[3] + wy * dz - wz * dy
+        T[b, 13] = cv[4] + wz * dx - wx * dz
+        T[b, 14] = cv[5] + wx * dy - wy * dx
+        T[b, 21] = surface
+        # rft3d's element law; the depth test first (cheap: most elements are out of the bed)
+        Fx = Fy = Fz = Tx = Ty = Tz = 0.0
+        for i in range(meta[b, 2], meta[b, 3]):
+            oz = T[b, 9] * G[i, 0] + T[b, 10] * G[i, 1] + T[b, 11] * G[i, 2]
+            if surface - T[b, 2] - oz <= 0.0:
+                continue
+            fx, fy, fz, rx, ry, rz = _element_force(G, i, T, b, C[0], C[1], C[2], S[b, 1], S[b, 2], S[b, 3])
+            Fx += fx
+            Fy += fy
+            Fz += fz
+            Tx += ry * fz - rz * fy
+            Ty += rz * fx - rx * fz
+            Tz += rx * fy - ry * fx
+        out[b, 0], out[b, 1], out[b, 2], out[b, 3], out[b, 4], out[b, 5] = Fx, Fy, Fz, Tx, Ty, Tz
+        if stick_dt > 0.0:  # no-reversal cap: the terrain impulse can at most stop the body
+            ex = xipos[bid, 0] - subtree_com[root, 0]
+            ey = xipos[bid, 1] - subtree_com[root, 1]
+            ez = xipos[bid, 2] - subtree_com[root, 2]
+            xi = np.empty(6)  # predicted twist at the CoM: v_com, omega (world)
+            xi[0] = cv[3] + wy * ez - wz * ey
+            xi[1] = cv[4] + wz * ex - wx * ez
+            xi[2] = cv[5] + wx * ey - wy * ex
+            xi[3], xi[4], xi[5] = wx, wy, wz
+            power = 0.0
+            for k in range(6):
+                power += xi[k] * out[b, k]
+            if power < 0.0:
+                wb = np.empty(6)  # the wrench in the body frame (R^T F, R^T tau)
+                for k in range(3):
+                    wb[k] = xmat[bid, k] * Fx + xmat[bid, 3 + k] * Fy + xmat[bid, 6 + k] * Fz
+                    wb[3 + k] = xmat[bid, k] * Tx + xmat[bid, 3 + k] * Ty + xmat[bid, 6 + k] * Tz
+                ww = 0.0
+                for i in range(6):
+                    for j in range(6):
+                        ww += wb[i] * S[b, 4 + 6 * i + j] * wb[j]
+                if ww > 0.0:
+                    sc = -power / (stick_dt * ww)  # the scale that stops the twist along w
+                    if sc < 1.0:
+                        # the wrench that stops the whole predicted twist: -M_b xi / dt (body
+                        # frame); held if it is no stronger than the RFT wrench (same metric)
+                        xb = np.empty(6)
+                        for k in range(3):
+                            xb[k] = xmat[bid, k] * xi[0] + xmat[bid, 3 + k] * xi[1] + xmat[bid, 6 + k] * xi[2]
+                            xb[3 + k] = xmat[bid, k] * xi[3] + xmat[bid, 3 + k] * xi[4] + xmat[bid, 6 + k] * xi[5]
+                        ws = np.zeros(6)
+                        kin = 0.0
+                        for i in range(6):
+                            for j in range(6):
+                                ws[i] -= S[b, 40 + 6 * i + j] * xb[j] / stick_dt
+                            kin -= xb[i] * ws[i] / stick_dt
+                        if kin <= ww:
+                            for k in range(3):
+                                out[b, k] = xmat[bid, 3 * k] * ws[0] + xmat[bid, 3 * k + 1] * ws[1] + xmat[bid, 3 * k + 2] * ws[2]
+                                out[b, 3 + k] = xmat[bid, 3 * k] * ws[3] + xmat[bid, 3 * k + 1] * ws[4] + xmat[bid, 3 * k + 2] * ws[5]
+                        else:
+                            for k in range(6):
+                                out[b, k] *= sc
+
+
+_ENTRY: list = []
+
+
+def _kernel():
+    """The compiled step kernel's entry point (skips Numba's per-call type dispatch, which
+    costs more than the kernel's own work for a small robot), compiled on first use."""
+    if not _ENTRY:
+        if not _terrain_wrenches.signatures:
+            f, i = np.zeros((1, 6)), np.zeros((1, 6), np.int64)
+            _terrain_wrenches(np.zeros((1, 7)), i, np.zeros(1, np.int64), np.zeros((1, 76)),
+                              np.zeros((1, 22)), np.ones((1, 3)), np.zeros((1, 9)), np.zeros((1, 3)),
+                              f, np.zeros((1, 3)), f, np.zeros(1), 0.0, 0.0, f)
+        sig = _terrain_wrenches.signatures[0]
+        _ENTRY.append(getattr(_terrain_wrenches.overloads[sig], "entry_point", _terrain_wrenches))
+    return _ENTRY[0]
+
+
+# ------------------------------------------------------------------------------------------
+# The terrain
+# ------------------------------------------------------------------------------------------
+def _names(model, objtype, n: int) -> list[str]:
+    return [mujoco.mj_id2name(model, objtype, i) or "" for i in range(n)]
+
+
+@dataclass
+class GranularTerrain:
+    """3D-RFT ground for the named bodies (or geoms) of a MuJoCo model; see the module doc.
+
+    ``model``: compiled ``mujoco.MjModel`` (its collision bits are changed in place).
+    ``bodies``: names of bodies whose geoms touch the ground (all their supported geoms);
+    ``geoms``: names of single geoms instead or in addition. ``medium``: a
+    :class:`~terradyn.rft3d.Medium3D`. ``surface``: height of the bed's free surface, m.
+    ``dynamic_lambda``: dynamic-RFT lambda (None: quasi-static). ``floor``: names of the geoms
+    whose rigid contact with the terrain geoms is switched off (None: the plane/height-field
+    geoms of the world body). ``max_edge``: mesh resolution of boxes, capsules, cylinders, m
+    (None: a quarter of the largest half-size of each body's geoms). ``stick``: the
+    no-reversal (rest) rule of the module doc.
+    """
+
+    model: object
+    medium: Medium3D
+    bodies: tuple[str, ...] = ()
+    geoms: tuple[str, ...] = ()
+    surface: float = 0.0
+    dynamic_lambda: float | None = None
+    floor: tuple[str, ...] | None = None
+    max_edge: float | None = None
+    stick: bool = True
+    sections: int = 16
+    surfaces: dict = field(default_factory=dict, init=False)
+
+    def __post_init__(self):
+        m = self.model
+        if not isinstance(m, mujoco.MjModel):
+            raise InputError("model", f"must be a compiled mujoco.MjModel, got {type(m).__name__}")
+        if not isinstance(self.medium, Medium3D):
+            raise InputError("medium", "must be a terradyn.rft3d.Medium3D (e.g. rft3d.medium3d('poppy LP'))")
+        self.surface = finite("surface", self.surface, "m")
+        self.stick = bool(self.stick)
+        if self.dynamic_lambda is not None:
+            positive("dynamic_lambda", self.dynamic_lambda)
+        if self.max_edge is not None:
+            positive("max_edge", self.max_edge, "m")
+        self.bodies = tuple(self.bodies)
+        self.geoms = tuple(self.geoms)
+        if not self.bodies and not self.geoms:
+            raise InputError("bodies", "name at least one body (or geom) that touches the ground")
+        body_names = _names(m, mujoco.mjtObj.mjOBJ_BODY, m.nbody)
+        geom_names = _names(m, mujoco.mjtObj.mjOBJ_GEOM, m.ngeom)
+        per_body: dict[int, list[int]] = {}
+        for b in self.bodies:
+            if b not in body_names or not b:
+                raise InputError("bodies", f"the model has no body named {b!r}; its bodies: "
+                                           f"{', '.join(n for n in body_names if n) or '(none named)'}")
+            bid = body_names.index(b)
+            gs = [g for g in range(m.ngeom) if m.geom_bodyid[g] == bid]
+            if not gs:
+                raise InputError("bodies", f"body {b!r} has no geoms to feel the terrain")
+            per_body.setdefault(bid, []).extend(gs)
+        for gname in self.geoms:
+            if gname not in geom_names or not gname:
+                raise InputError("geoms", f"the model has no geom named {gname!r}; its geoms: "
+                                          f"{', '.join(n for n in geom_names if n) or '(none named)'}")
+            g = geom_names.index(gname)
+            lst = per_body.setdefault(int(m.geom_bodyid[g]), [])
+            if g not in lst:
+                lst.append(g)
+        if 0 in per_body:
+            raise InputError("bodies", "the world body cannot feel the terrain (it does not move)")
+        self.body_ids = np.array(sorted(per_body), dtype=np.int64)
+        self.geom_ids = np.array(sorted(g for gs in per_body.values() for g in gs), dtype=np.int64)
+        # surfaces
+        G, meta, rad = [], [], []
+        lo = 0
+        for bid in self.body_ids:
+            name = body_names[bid] or f"body{bid}"
+            gs = sorted(per_body[bid])
+            me = self.max_edge
+            if me is None:  # a quarter of the smallest dimension of the body's geoms
+                me = 0.25 * max(float(np.max(m.geom_size[g])) for g in gs
+                                if int(m.geom_type[g]) != int(mujoco.mjtGeom.mjGEOM_MESH)) \
+                    if any(int(m.geom_type[g]) != int(mujoco.mjtGeom.mjGEOM_MESH) for g in gs) else None
+            surf = body_surface(m, gs, name, me, self.sections)
+            self.surfaces[name] = surf
+            p = surf.packed()
+            G.append(p)
+            meta.append((bid, int(m.body_rootid[bid]), lo, lo + len(p)))
+            rad.append(float(np.linalg.norm(p[:, :3], axis=1).max()))
+            lo += len(p)
+        self._G = np.ascontiguousarray(np.concatenate(G))
+        anc = []
+        for k, bid in enumerate(self.body_ids):  # the dofs that move each body (its ancestors')
+            start = len(anc)
+            b = int(bid)
+            while b > 0:
+                anc.extend(int(j) for j in range(m.nv) if m.dof_bodyid[j] == b)
+                b = int(m.body_parentid[b])
+            meta[k] = meta[k] + (start, len(anc))
+        self._anc = np.array(anc + [0], dtype=np.int64)
+        self._meta = np.array(meta, dtype=np.int64)
+        nb = len(self.body_ids)
+        self._S = np.zeros((nb, 76))
+        self._S[:, 0] = rad
+        self._S[:, 1:4] = _params(self.medium, self.dynamic_lambda)
+        self._mobility_set = False
+        self._bound = None
+        self._T = np.zeros((nb, 22))
+        self._out = np.zeros((nb, 6))
+        self._disable_floor_contact(geom_names)
+
+    # ---------------------------------------------------------------- contact with the floor
+    def _disable_floor_contact(self, geom_names):
+        m = self.model
+        if self.floor is None:
+            fl = [g for g in range(m.ngeom) if m.geom_bodyid[g] == 0 and int(m.geom_type[g]) in FLOOR_TYPES]
+        else:
+            fl = []
+            for f in self.floor:
+                if f not in geom_names or not f:
+                    raise InputError("floor", f"the model has no geom named {f!r}")
+                fl.append(geom_names.index(f))
+        self.floor_ids = np.array(fl, dtype=np.int64)
+        for g in self.geom_ids:
+            for f in fl:
+                m.geom_contype[g] &= ~int(m.geom_conaffinity[f])
+                m.geom_conaffinity[g] &= ~int(m.geom_contype[f])
+
+    # ---------------------------------------------------------------- forces
+    @property
+    def n_elements(self) -> int:
+        return len(self._G)
+
+    def wrenches(self, data) -> np.ndarray:
+        """(nb, 6) terrain wrenches [F (N), torque about the CoM (N m)], world frame, of the
+        terrain bodies (order :attr:`body_ids`) in ``data``'s current kinematics (after
+        ``mj_step1`` or ``mj_forward``). With ``stick`` the velocities are the predicted
+        end-of-step ones and the no-reversal cap applies (module doc)."""
+        m = self.model
+        stick_dt = 0.0
+        if self.stick:
+            if not self._mobility_set:
+                mob = self.mobility(data)
+                self._S[:, 4:40] = mob.reshape(-1, 36)
+                self._S[:, 40:76] = np.linalg.pinv(mob, hermitian=True).reshape(-1, 36)
+                self._mobility_set = True
+            stick_dt = m.opt.timestep
+            mujoco.mj_fwdActuation(m, data)
+            mujoco.mj_fwdAcceleration(m, data)
+        if self._bound is not data:  # MjData arrays never move: bind their views once
+            self._args = (self._G, self._meta, self._anc, self._S, self._T, data.xpos, data.xmat,
+                          data.xipos, data.cvel, data.subtree_com, data.cdof, data.qacc_smooth)
+            self._xfrc = data.xfrc_applied
+            self._bound = data
+        _kernel()(*self._args, self.surface, stick_dt, self._out)
+        return self._out
+
+    def apply(self, data) -> np.ndarray:
+        """Add the terrain wrenches to ``data.xfrc_applied``; returns them ((nb, 6), a view
+        overwritten by the next call). Take them out again after ``mj_step2``
+        (:meth:`remove`), or use :meth:`step`."""
+        w = self.wrenches(data)
+        self._xfrc[self.body_ids] += w
+        return w
+
+    def remove(self, data) -> None:
+        """Take the last applied terrain wrenches out of ``data.xfrc_applied``."""
+        self._xfrc[self.body_ids] -= self._out
+
+    def step(self, data, substeps: int = 1) -> None:
+        """One model step (``model.opt.timestep``) with the terrain: ``substeps`` rounds of
+        mj_step1, terrain, mj_step2 of ``timestep / substeps`` each."""
+        m = self.model
+        if substeps == 1:
+            mujoco.mj_step1(m, data)
+            self.apply(data)
+            mujoco.mj_step2(m, data)
+            self.remove(data)
+            return
+        dt = m.opt.timestep
+        m.opt.timestep = dt / substeps
+        try:
+            for _ in range(substeps):
+                mujoco.mj_step1(m, data)
+                self.apply(data)
+                mujoco.mj_step2(m, data)
+                self.remove(data)
+        finally:
+            m.opt.timestep = dt
+
+    # ---------------------------------------------------------------- stiffness rule
+    def stiffness(self) -> np.ndarray:
+        """(nb,) bound on each body's terrain stiffness dF/d(depth), N/m:
+        xi_n |a|max A/2 (A the body's surface area)."""
+        areas = np.array([self._G[r[2]:r[3], 6].sum() for r in self._meta])
+        return self.medium.xi_n * max_generic_stress() * 0.5 * areas
+
+    def mobility(self, data) -> np.ndarray:
+        """(nb, 6, 6) mobility J M^-1 J^T of each terrain body's CoM twist (v, omega), in the
+        body's frame, in ``data``'s configuration (after ``mj_forward`` / ``mj_step1``). The
+        no-reversal cap takes it from the first step and turns it with the body (exact for a
+        free rigid body, an estimate for a linked one whose joints move)."""
+        m = self.model
+        out = np.empty((len(self.body_ids), 6, 6))
+        J = np.zeros((6, m.nv))
+        X = np.zeros((6, m.nv))
+        for i, bid in enumerate(self.body_ids):
+            jp, jr = np.zeros((3, m.nv)), np.zeros((3, m.nv))
+            mujoco.mj_jacBodyCom(m, data, jp, jr, int(bid))
+            R = np.asarray(data.xmat[bid]).reshape(3, 3)
+            J[:3], J[3:] = R.T @ jp, R.T @ jr
+            mujoco.mj_solveM(m, data, X, J)
+            out[i] = J @ X.T
+        return out
+
+    def effective_mass(self, data) -> np.ndarray:
+        """(nb,) smallest effective mass of each terrain body in the model, kg: 1 / the largest
+        mobility of a point of the body (MuJoCo's inverse mass matrix, joints included), in
+        ``data``'s configuration (after ``mj_forward`` or ``mj_step1``)."""
+        m = self.model
+        out = np.empty(len(self.body_ids))
+        jp = np.zeros((3, m.nv))
+        jr = np.zeros((3, m.nv))
+        for i, bid in enumerate(self.body_ids):
+            mujoco.mj_jacBodyCom(m, data, jp, jr, int(bid))
+            xp = np.zeros((3, m.nv))
+            xr = np.zeros((3, m.nv))
+            mujoco.mj_solveM(m, data, xp, jp)
+            mujoco.mj_solveM(m, data, xr, jr)
+            lam = np.linalg.eigvalsh(jp @ xp.T).max() + self._S[i, 0] ** 2 * np.linalg.eigvalsh(jr @ xr.T).max()
+            out[i] = 1.0 / lam
+        return out
+
+    def stable_timestep(self, data, safety: float = 0.5) -> float:
+        """Largest time step (s) of the rule omega dt <= 2 safety, omega = sqrt(k / m_eff)
+        over the terrain bodies (:meth:`stiffness`, :meth:`effective_mass`)."""
+        safety = positive("safety", safety)
+        omega = np.sqrt(self.stiffness() / self.effective_mass(data))
+        return float(2 * safety / omega.max())
+
+    def substeps_for(self, data, safety: float = 0.5) -> int:
+        """Substeps that bring ``model.opt.timestep`` within :meth:`stable_timestep`."""
+        return max(1, math.ceil(self.model.opt.timestep / self.stable_timestep(data, safety) - 1e-12))
+
+    def describe(self) -> dict:
+        return {"bodies": [self.model.body(int(b)).name for b in self.body_ids],
+                "elements": self.n_elements, "medium": self.medium.describe(),
+                "surface_m": self.surface, "dynamic_lambda": self.dynamic_lambda,
+                "stick": self.stick,
+                "floor_geoms": [self.model.geom(int(g)).name for g in self.floor_ids]}
+
+
+def energy(model, data) -> float:
+    """Kinetic + gravitational potential energy of ``data``'s state (J), from MuJoCo
+    (``mj_forward`` first: after ``mj_step`` the derived positions are one step old)."""
+    mujoco.mj_forward(model, data)
+    mujoco.mj_energyPos(model, data)
+    mujoco.mj_energyVel(model, data)
+    return float(data.energy.sum())
+
+
+__all__ = ["GranularTerrain", "body_surface", "energy", "max_generic_stress", "GEOM_TYPES"]
