@@ -28,6 +28,10 @@ from .hosvd import hosvd
 FORMAT = "terradyn-dddas-surrogate"
 FORMAT_VERSION = 1
 COMPONENT_UNITS = {"Fx": "N", "Fz": "N", "torque": "N m"}
+#: GP optimizer restarts allowed (each one refits every coefficient's GP).
+MAX_RESTARTS = 100
+#: Largest training force accepted (N, N m): squares must stay finite in float64.
+MAX_FORCE = 1e12
 
 
 def condition_names(data: xr.Dataset) -> list[str]:
@@ -115,7 +119,8 @@ class Surrogate(BaseEstimator):
         in_range("step_energy", self.step_energy, 1e-6, 1.0)
         if self.scaling not in ("rms", "none"):
             raise InputError("scaling", f"must be 'rms' or 'none', got {self.scaling!r}")
-        integer("n_restarts", self.n_restarts, 0)
+        if integer("restarts", self.n_restarts, 0) > MAX_RESTARTS:
+            raise InputError("restarts", f"must be an integer in [0, {MAX_RESTARTS}], got {self.n_restarts!r}")
         return comps
 
     def _kernel(self, q: int):
@@ -146,6 +151,8 @@ class Surrogate(BaseEstimator):
             raise InputError("training forces", f"shape {Y.shape} does not match {X.shape[0]} cases x {len(comps)} components")
         if X.shape[0] < 3:
             raise InputError("data", f"need at least 3 training cases, got {X.shape[0]}")
+        if np.abs(Y).max() > MAX_FORCE:
+            raise InputError("training forces", f"|force| must be <= {MAX_FORCE:g} N (N m), got up to {np.abs(Y).max():g}")
         if X.shape[1] != len(input_names):
             raise InputError("inputs", f"{len(input_names)} names for {X.shape[1]} condition columns")
         x_scale = X.std(axis=0)
@@ -231,6 +238,20 @@ class Surrogate(BaseEstimator):
         if X.shape[1] != q:
             raise InputError("condition", f"need {q} value(s) per condition ({self.input_names_}), got {X.shape[1]}")
         return X
+
+    def extrapolation(self, condition) -> list[str]:
+        """Messages for each input of ``condition`` outside the training range (empty when
+        inside): predictions there are extrapolations."""
+        X = self.conditions_array(condition)
+        lo, hi = self.X_train_.min(0), self.X_train_.max(0)
+        out = []
+        for k, n in enumerate(self.input_names_):
+            v = X[:, k]
+            if (v < lo[k]).any() or (v > hi[k]).any():
+                bad = v[(v < lo[k]) | (v > hi[k])][0]
+                out.append(f"{n}={bad:g} is outside the training range [{lo[k]:g}, {hi[k]:g}]: the prediction "
+                           "extrapolates and may be unphysical")
+        return out
 
     def predict_coefficients(self, condition) -> tuple[np.ndarray, np.ndarray]:
         """GP mean and standard deviation of the coefficients, each (m, D)."""
