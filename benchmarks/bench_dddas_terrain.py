@@ -61,6 +61,35 @@ def run(model, lin, trials):
             "present": stats(t_old) | {"D": int(len(lin.mean))}}
 
 
+def parts(model, tr, repeats=200):
+    """Minimum and median times (us) of the three parts of a step, each repeated on one
+    filter state 40 samples into a trial: the update without resampling, the systematic
+    resampling, and one Metropolis-Hastings sweep. Minima estimate an unloaded machine."""
+    chans = [Channel(n, w, sd, sd) for n, w, sd in tr["channels"]]
+    f = TerrainFilter(model, chans, n_particles=N, seed=0, ess_threshold=0.0)
+    for i in range(40):
+        f.update(tr["theta"][i], {n: float(tr["obs"][n][i]) for n in tr["obs"]})
+    th, vals = tr["theta"][40], {n: float(tr["obs"][n][40]) for n in tr["obs"]}
+    f.check_theta = lambda t: float(t)  # repeat one sample
+
+    def clock(fn):
+        t = []
+        for _ in range(repeats):
+            t0 = time.perf_counter()
+            fn()
+            t.append(time.perf_counter() - t0)
+        t = np.array(t) * 1e6
+        return {"min_us": float(t.min()), "p50_us": float(np.median(t))}
+
+    out = {"update": clock(lambda: f.update(th, vals))}
+    f.move_sweeps = 0
+    out["resample"] = clock(f.resample)
+    f.move_sweeps = 1
+    rs = clock(f.resample)
+    out["resample_and_move"] = rs
+    return out
+
+
 def hogs(n):
     return [subprocess.Popen([sys.executable, "-c", "while True: pass"]) for _ in range(n)]
 
@@ -75,6 +104,9 @@ def main():
     rng = np.random.default_rng(0)
     trials = [make_trial("flat", model, rng) for _ in range(TRIALS)]
     run(model, lin, trials[:1])  # compile / load the kernels
+    pt = parts(model, trials[0])
+    print("parts of a step (min / median us over 200 repeats): " + "; ".join(
+        f"{k} {v['min_us']:.0f} / {v['p50_us']:.0f}" for k, v in pt.items()))
     rows = []
     for busy in (0, 2):
         procs = hogs(busy)
@@ -99,7 +131,7 @@ def main():
     out.parent.mkdir(exist_ok=True)
     out.write_text(json.dumps({"machine": platform.platform(), "cpus": os.cpu_count(), "python": platform.python_version(),
                                "quick": QUICK, "particles": N, "trials": TRIALS, "samples_per_trial": len(trials[0]["theta"]),
-                               "load_average_before": load, "runs": rows,
+                               "load_average_before": load, "runs": rows, "parts": pt,
                                "when": time.strftime("%Y-%m-%dT%H:%M:%SZ", time.gmtime())}, indent=2))
     print(f"wrote {out}")
 

@@ -11,6 +11,9 @@ truth. Methods:
 * ``prior``: the terrain model's prior predictive mean (no data);
 * ``terrain``: :class:`~terradyn.dddas.terrain.TerrainFilter` (conditions in the state,
   Rao-Blackwellised strength and biases, resample-move);
+* ``grid``: the exact Bayesian posterior of the same model by quadrature (every medium x a
+  regular grid of conditions, strength and biases integrated out exactly): what the
+  terrain filter approximates, and the best any method can do with that model and data;
 * ``pf`` and ``exact``: the present coefficient-space filters on a linear model (one HOSVD
   basis pooled over all media and conditions, a Gaussian prior from the training
   coefficients): :class:`~terradyn.dddas.filter.ParticleFilter` and its exact Gaussian
@@ -34,7 +37,7 @@ from .hosvd import hosvd
 from .terrain import COMPONENTS, LEG_KINDS, MEDIA, Channel, TerrainFilter, TerrainModel, rft_forces, training_stack
 
 FRACTIONS = tuple(np.round(np.arange(0.1, 0.91, 0.1), 2))
-METHODS = ("prior", "terrain", "pf", "exact", "oracle", "naive")
+METHODS = ("prior", "terrain", "grid", "pf", "exact", "oracle", "naive")
 #: Lever arm of the foot's load cell (m): it reads torque / lever arm.
 FOOT_LEVER_ARM = 0.10
 
@@ -130,6 +133,7 @@ def run_trial(tr: dict, model: TerrainModel, lin: PooledLinear, fractions=FRACTI
     channels = [Channel(n, w, sd, bias_prior * rms_prior.get(n, 1.0)) for n, w, sd in tr["channels"]]
     filt = TerrainFilter(model, channels, k_std=k_std, n_particles=particles, seed=seed, move_sweeps=move_sweeps)
     prior_fc = filt.forecast()
+    grid = TerrainFilter.on_grid(model, channels, k_std=k_std)
     pf = ParticleFilter(lin.mean, lin.cov, n_particles=particles, rng=seed, jitter_floor=0.01)
     rows = {n: lin.rows(w) for n, w, _ in tr["channels"]}
     sig = {n: np.sqrt(sd ** 2 + rows[n][2] ** 2) for n, _, sd in tr["channels"]}
@@ -139,7 +143,7 @@ def run_trial(tr: dict, model: TerrainModel, lin: PooledLinear, fractions=FRACTI
     th = tr["theta"]
     nf, nc = len(fractions), len(COMPONENTS)
     mse = np.full((nf, len(METHODS), nc), np.nan)
-    ident = {"p_true": np.zeros(nf), "map": [], "zeta_mean": np.zeros(nf), "zeta_lo": np.zeros(nf),
+    ident = {"p_true": np.zeros(nf), "map": [], "p_true_grid": np.zeros(nf), "map_grid": [], "zeta_mean": np.zeros(nf), "zeta_lo": np.zeros(nf),
              "zeta_hi": np.zeros(nf)}
     t_steps = []
     done = 0
@@ -149,6 +153,7 @@ def run_trial(tr: dict, model: TerrainModel, lin: PooledLinear, fractions=FRACTI
             t0 = time.perf_counter()
             filt.update(th[i], vals)
             t_steps.append(time.perf_counter() - t0)
+            grid.update(th[i], vals)
             for n, (H, off, _) in rows.items():
                 pf.update(H[i], off[i], vals[n], sig[n][i])
         done = cut
@@ -158,13 +163,16 @@ def run_trial(tr: dict, model: TerrainModel, lin: PooledLinear, fractions=FRACTI
         ys = np.concatenate([tr["obs"][n][:cut] for n in rows])
         ss = np.concatenate([sig[n][:cut] for n in rows])
         ex.update_many(Hs, offs, ys, ss)
-        fc = {"prior": prior_fc, "terrain": filt.forecast(), "pf": lin.forces(pf.mean), "exact": lin.forces(ex.mean),
+        fc = {"prior": prior_fc, "terrain": filt.forecast(), "grid": grid.forecast(), "pf": lin.forces(pf.mean), "exact": lin.forces(ex.mean),
               "oracle": oracle, "naive": _naive(tr["obs"], cut, S, tr["leg"])}
         for mj, m in enumerate(METHODS):
             mse[fi, mj] = np.mean((fc[m][cut:] - truth[cut:]) ** 2, axis=0)
         p = filt.medium_probabilities()
         ident["p_true"][fi] = p[tr["medium"]]
         ident["map"].append(max(p, key=p.get))
+        pg = grid.medium_probabilities()
+        ident["p_true_grid"][fi] = pg[tr["medium"]]
+        ident["map_grid"].append(max(pg, key=pg.get))
         z = filt.zeta_posterior()
         ident["zeta_mean"][fi], ident["zeta_lo"][fi], ident["zeta_hi"][fi] = z["mean"], z["lo"], z["hi"]
     return {"mse": mse, "ident": ident, "step_us": np.array(t_steps) * 1e6, "resamples": filt.n_resamples}
@@ -194,7 +202,7 @@ def forecast_study(out: str | Path | None = None, legs: Sequence[str] = LEG_KIND
     warmup()
     rng = np.random.default_rng(seed)
     n_t = len(MEDIA) * n_tr
-    res = {k: [] for k in ("mse", "p_true", "correct", "zeta_mean", "zeta_lo", "zeta_hi", "zeta_true", "medium",
+    res = {k: [] for k in ("mse", "p_true", "correct", "p_true_grid", "correct_grid", "zeta_mean", "zeta_lo", "zeta_hi", "zeta_true", "medium",
                            "step_us", "resamples")}
     t_start = time.perf_counter()
     for leg in legs:
@@ -213,6 +221,8 @@ def forecast_study(out: str | Path | None = None, legs: Sequence[str] = LEG_KIND
             per["mse"].append(r["mse"])
             per["p_true"].append(r["ident"]["p_true"])
             per["correct"].append([m == tr["medium"] for m in r["ident"]["map"]])
+            per["p_true_grid"].append(r["ident"]["p_true_grid"])
+            per["correct_grid"].append([m == tr["medium"] for m in r["ident"]["map_grid"]])
             for z in ("zeta_mean", "zeta_lo", "zeta_hi"):
                 per[z].append(r["ident"][z])
             per["zeta_true"].append(tr["k"] * model.zeta[model.media.index(tr["medium"])])
@@ -228,6 +238,8 @@ def forecast_study(out: str | Path | None = None, legs: Sequence[str] = LEG_KIND
         {"mse": (("leg", "trial", "fraction", "estimator", "component"), np.array(res["mse"])),
          "p_true_medium": (("leg", "trial", "fraction"), np.array(res["p_true"])),
          "correct": (("leg", "trial", "fraction"), np.array(res["correct"])),
+         "p_true_medium_grid": (("leg", "trial", "fraction"), np.array(res["p_true_grid"])),
+         "correct_grid": (("leg", "trial", "fraction"), np.array(res["correct_grid"])),
          "zeta_mean": (("leg", "trial", "fraction"), np.array(res["zeta_mean"])),
          "zeta_lo": (("leg", "trial", "fraction"), np.array(res["zeta_lo"])),
          "zeta_hi": (("leg", "trial", "fraction"), np.array(res["zeta_hi"])),
@@ -272,12 +284,14 @@ def summarise(ds: xr.Dataset, at: float = 0.3) -> dict:
         mse = {str(meth): {str(c): float(m.sel(estimator=meth, component=c)) for c in ds.component.values}
                for meth in ds.estimator.values}
         ratio = {name: {str(c): mse["terrain"][str(c)] / mse[name][str(c)] for c in ds.component.values}
-                 for name in ("prior", "oracle", "pf", "exact", "naive")}
+                 for name in ("prior", "oracle", "grid", "pf", "exact", "naive")}
         z = f.sel(leg=leg)
         cover = float(((z["zeta_lo"] <= ds["zeta_true"].sel(leg=leg)) & (ds["zeta_true"].sel(leg=leg) <= z["zeta_hi"])).mean())
         out["legs"][str(leg)] = {
             "mse_mean": mse, "terrain_over": ratio,
             "medium_correct": float(z["correct"].mean()),
+            "medium_correct_exact_bayes_grid": float(z["correct_grid"].mean()),
+            "p_true_medium_mean": float(z["p_true_medium"].mean()),
             "medium_correct_by_fraction": {float(fr): float(ds["correct"].sel(leg=leg, fraction=fr).mean())
                                           for fr in ds.fraction.values},
             "zeta_ci95_coverage": cover,

@@ -152,6 +152,7 @@ def ess_trace(ess: np.ndarray, x: np.ndarray, path, n_particles: int, xlabel: st
 
 _METHOD_STYLE = {"prior": ("prior (surrogate, no data)", "0.5", "--"),
                  "terrain": ("terrain filter (RB + resample-move)", "C3", "-"),
+                 "grid": ("exact Bayes (quadrature)", "C4", (0, (5, 2))),
                  "pf": ("present particle filter (coefficients)", "C0", "-."),
                  "exact": ("exact posterior (linear model)", "C2", ":"),
                  "oracle": ("oracle (surrogate at the true condition)", "k", "-"),
@@ -178,7 +179,8 @@ def forecast_mse(ds: xr.Dataset, path, title: str = "") -> Path:
             ax.set_xlabel("stroke observed (%)")
             ax.set_ylabel(f"forecast MSE ({u}$^2$)")
             ax.grid(True, which="both", alpha=0.3)
-    axes[0, 0].legend(fontsize=6, loc="best")
+    h, lab = axes[0, 0].get_legend_handles_labels()
+    fig.legend(h, lab, loc="outside lower center", ncol=4, fontsize=8)
     fig.suptitle(title or f"Forecast of the rest of the stroke vs noise-free truth "
                  f"({ds.sizes['trial']} RFT trials per leg, {100 * float(ds.attrs.get('noise_fraction', 0)):g} % noise)",
                  fontsize=10)

@@ -265,7 +265,10 @@ class TerrainModel:
 
 
 # ------------------------------------------------------------------------------ kernels
-# Per-particle arrays: mi (N,) medium index; U (N, q) conditions in box units; Z (N, P)
+#: LLVM fast-math flags without nnan / ninf: the kernels test for NaN (missing channels) and
+#: start maxima at -inf, which full fast-math may fold away.
+_FAST = {"nsz", "arcp", "contract", "afn", "reassoc"}
+# Per-particle arrays: mi (N,) medium index; U (N, q) conditions in box units; Zt (P, N)
 # tabulated coefficients [c, 1]; S (3, nch, N) running sums sum w g^2, sum w g, sum w g y
 # per channel; logml (N,) log marginal likelihood; ref (N,) its value at the last
 # resampling (weights = exp(logml - ref)); kpost (2, N) posterior mean and variance of k.
@@ -312,34 +315,87 @@ def _derive(n1, y1, yy, logc, pk, mk, pb, der):  # pragma: no cover - compiled
         der[m, 2 * nch] = c0
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True, fastmath=_FAST, inline="always")
 def _finish(lmp, ar, logml, ref):  # pragma: no cover - compiled
     """logml = lmp - log(ar) / 2 (ar >= 1; float32 polynomial log, vectorised), then the ESS
-    of exp(logml - ref) (float32 polynomial exp)."""
+    of exp(logml - ref) (float32 polynomial exp). Separate loops so that each vectorises."""
     N = logml.shape[0]
+    for i in range(N):
+        v = np.float32(1.0) / np.float32(min(ar[i], 1e30))
+        logml[i] = lmp[i] + 0.5 * np.float64(_log01(v))
     lw_max = -np.inf
     for i in range(N):
-        v = np.float32(1.0) / np.float32(ar[i])
-        v = v if v > np.float32(1e-30) else np.float32(1e-30)
-        lm = lmp[i] + 0.5 * np.float64(_log01(v))
-        logml[i] = lm
-        lw_max = max(lw_max, lm - ref[i])
-    sw = 0.0
-    sw2 = 0.0
+        lw_max = max(lw_max, logml[i] - ref[i])
+    sw = np.float32(0.0)
+    sw2 = np.float32(0.0)
     for i in range(N):
-        w = np.float64(_exp_neg(np.float32(max(logml[i] - ref[i] - lw_max, -80.0))))
+        w = _exp_neg(np.float32(logml[i] - ref[i] - lw_max))
         sw += w
         sw2 += w * w
-    return sw * sw / sw2
+    return np.float64(sw) * np.float64(sw) / np.float64(sw2)
 
 
-@njit(cache=True, fastmath=True)
+@njit(cache=True, fastmath=_FAST)
+def _block(m, obs, no, ys, rows, wts, Zt, S, der, pk, mk, kpost, lmp, ar):  # pragma: no cover - compiled
+    """The particle loops of :func:`_nb_assimilate` over one run of medium m (views, so the
+    loops start at 0 and vectorise)."""
+    n = ar.shape[0]
+    nch = S.shape[1]
+    P = Zt.shape[0]
+    g = kpost[0]
+    for i in range(n):
+        ar[i] = pk
+        lmp[i] = pk * mk
+    for o in range(no):
+        c = obs[o]
+        y = ys[c]
+        w = wts[o, m]
+        r0 = rows[o, m, 0]
+        for i in range(n):
+            g[i] = r0 * Zt[0, i]
+        for p in range(1, P):
+            rp = rows[o, m, p]
+            for i in range(n):
+                g[i] += rp * Zt[p, i]
+        S0 = S[0, c]
+        S1 = S[1, c]
+        S2 = S[2, c]
+        for i in range(n):
+            wg = w * g[i]
+            S0[i] += wg * g[i]
+            S1[i] += wg
+            S2[i] += wg * y
+    for c in range(nch):
+        dc = der[m, c]
+        yc = der[m, nch + c]
+        S0 = S[0, c]
+        S1 = S[1, c]
+        S2 = S[2, c]
+        for i in range(n):
+            s1 = S1[i]
+            ar[i] += S0[i] - s1 * s1 * dc
+            lmp[i] += S2[i] - s1 * yc
+    c0 = der[m, 2 * nch]
+    kv = kpost[1]
+    for i in range(n):
+        a = ar[i]
+        ek = lmp[i]
+        xk = ek / a
+        g[i] = xk
+        kv[i] = 1.0 / a
+        lmp[i] = c0 + 0.5 * ek * xk
+        ar[i] = a / pk
+
+
+@njit(cache=True, fastmath=_FAST)
 def _nb_assimilate(k0, f, ys, noise2, R, RES2, Q, q1, r, n1, y1, yy, logc, der, pk, mk, pb,
-                   mi, Z, S, logml, ref, kpost, rows, wts, buf2):  # pragma: no cover - compiled
+                   mi, Zt, S, logml, ref, kpost, rows, wts, buf2):  # pragma: no cover - compiled
     """One sample, all channels (ys (nch,), NaN = missing) at fraction f between grid points
     k0 and k0 + 1: update the statistics, then every particle's running sums, log marginal
-    likelihood and k posterior. rows (nch, M, P), wts (nch, M) and buf2 (2, N) are scratch.
-    Returns the ESS of the weights exp(logml - ref) (-1 if nothing was observed)."""
+    likelihood and k posterior. Zt (P, N): the particles' coefficients; rows (nch, M, P),
+    wts (nch, M) and buf2 (2, N) are scratch. Particles are processed in runs of equal
+    medium (kept sorted by medium, so the loops over a run vectorise). Returns the ESS of
+    the weights exp(logml - ref) (-1 if nothing was observed)."""
     nch, M, _, P = R.shape
     N = mi.shape[0]
     obs = np.empty(nch, np.int64)
@@ -371,29 +427,62 @@ def _nb_assimilate(k0, f, ys, noise2, R, RES2, Q, q1, r, n1, y1, yy, logc, der, 
     _derive(n1, y1, yy, logc, pk, mk, pb, der)
     lmp = buf2[0]
     ar = buf2[1]
+    s = 0
+    while s < N:
+        m = mi[s]
+        e = s + 1
+        while e < N and mi[e] == m:
+            e += 1
+        _block(m, obs, no, ys, rows, wts, Zt[:, s:e], S[:, :, s:e], der, pk, mk, kpost[:, s:e], lmp[s:e], ar[s:e])
+        s = e
+    return _finish(lmp, ar, logml, ref)
+
+
+@njit(cache=True)
+def _gather(idx, mi, U, Zt, S, logml, kpost, buf):  # pragma: no cover - compiled
+    """Reorder every per-particle array by idx (N,) through the buffer buf (N,)."""
+    N = mi.shape[0]
+    for i in range(N):
+        buf[i] = mi[idx[i]]
+    for i in range(N):
+        mi[i] = np.int64(buf[i])
+    for a in (logml, kpost[0], kpost[1]):
+        for i in range(N):
+            buf[i] = a[idx[i]]
+        for i in range(N):
+            a[i] = buf[i]
+    for j in range(U.shape[1]):
+        for i in range(N):
+            buf[i] = U[idx[i], j]
+        for i in range(N):
+            U[i, j] = buf[i]
+    for p in range(Zt.shape[0]):
+        for i in range(N):
+            buf[i] = Zt[p, idx[i]]
+        for i in range(N):
+            Zt[p, i] = buf[i]
+    for k in range(3):
+        for c in range(S.shape[1]):
+            for i in range(N):
+                buf[i] = S[k, c, idx[i]]
+            for i in range(N):
+                S[k, c, i] = buf[i]
+
+
+@njit(cache=True)
+def _nb_sort(mi, U, Zt, S, logml, kpost, idx, buf, M):  # pragma: no cover - compiled
+    """Stable counting sort of the particles by medium (keeps the runs long)."""
+    N = mi.shape[0]
+    cnt = np.zeros(M + 1, np.int64)
+    for i in range(N):
+        cnt[mi[i] + 1] += 1
+    for m in range(M):
+        cnt[m + 1] += cnt[m]
     for i in range(N):
         m = mi[i]
-        for o in range(no):
-            c = obs[o]
-            g = 0.0
-            for p in range(P):
-                g += rows[o, m, p] * Z[i, p]
-            wg = wts[o, m] * g
-            S[0, c, i] += wg * g
-            S[1, c, i] += wg
-            S[2, c, i] += wg * ys[c]
-        a = pk
-        ek = pk * mk
-        for c in range(nch):
-            s1 = S[1, c, i]
-            a += S[0, c, i] - s1 * s1 * der[m, c]
-            ek += S[2, c, i] - s1 * der[m, nch + c]
-        xk = ek / a
-        lmp[i] = der[m, 2 * nch] + 0.5 * ek * xk
-        ar[i] = a / pk
-        kpost[0, i] = xk
-        kpost[1, i] = 1.0 / a
-    return _finish(lmp, ar, logml, ref)
+        idx[cnt[m]] = i
+        cnt[m] += 1
+    _gather(idx, mi, U, Zt, S, logml, kpost, buf)
 
 
 @njit(cache=True)
@@ -402,9 +491,10 @@ def _nb_seed(seed):  # pragma: no cover - compiled
 
 
 @njit(cache=True)
-def _nb_resample(mi, U, Z, S, logml, ref, kpost, idx, buf):  # pragma: no cover - compiled
-    """Systematic resampling of every per-particle array by the weights exp(logml - ref);
-    idx (N,) int64 and buf (N,) float64 scratch. Afterwards ref = logml (equal weights)."""
+def _nb_resample(mi, U, Zt, S, logml, ref, kpost, idx, buf):  # pragma: no cover - compiled
+    """Systematic resampling of every per-particle array by the weights exp(logml - ref)
+    (ancestors in order, so particles sorted by medium stay sorted); idx (N,) int64 and buf
+    (N,) float64 scratch. Afterwards ref = logml (equal weights)."""
     N = mi.shape[0]
     lw_max = -np.inf
     for i in range(N):
@@ -420,39 +510,13 @@ def _nb_resample(mi, U, Z, S, logml, ref, kpost, idx, buf):  # pragma: no cover 
         while j < N - 1 and buf[j] < t:
             j += 1
         idx[i] = j
-    # idx is nondecreasing with idx[i] >= i or a copy of an earlier one: gather in place
-    # from the end would not be safe in general, so gather through the buffer.
-    for i in range(N):
-        buf[i] = mi[idx[i]]
-    for i in range(N):
-        mi[i] = np.int64(buf[i])
-    for a in (logml, kpost[0], kpost[1]):
-        for i in range(N):
-            buf[i] = a[idx[i]]
-        for i in range(N):
-            a[i] = buf[i]
-    for j in range(U.shape[1]):
-        for i in range(N):
-            buf[i] = U[idx[i], j]
-        for i in range(N):
-            U[i, j] = buf[i]
-    for j in range(Z.shape[1]):
-        for i in range(N):
-            buf[i] = Z[idx[i], j]
-        for i in range(N):
-            Z[i, j] = buf[i]
-    for k in range(3):
-        for c in range(S.shape[1]):
-            for i in range(N):
-                buf[i] = S[k, c, idx[i]]
-            for i in range(N):
-                S[k, c, i] = buf[i]
+    _gather(idx, mi, U, Zt, S, logml, kpost, buf)
     for i in range(N):
         ref[i] = logml[i]
 
 
-@njit(cache=True, fastmath=True)
-def _nb_move(mi, U, Z, S, logml, ref, kpost, tables, Q, q1, r, der, pk, mk, step, p_jump, seed,
+@njit(cache=True, fastmath=_FAST)
+def _nb_move(mi, U, Zt, S, logml, ref, kpost, tables, Q, q1, r, der, pk, mk, step, p_jump, seed,
              mp, Up, Zp, Sp, kp, buf2, acc):  # pragma: no cover - compiled
     """One random-walk Metropolis-Hastings sweep on (medium, u in [0, 1]^q) targeting the
     posterior given all samples so far (uniform prior on the box and the media): proposals
@@ -464,7 +528,7 @@ def _nb_move(mi, U, Z, S, logml, ref, kpost, tables, Q, q1, r, der, pk, mk, step
     N, q = U.shape
     M = tables.shape[0]
     nch = S.shape[1]
-    P = Z.shape[1]
+    P = Zt.shape[0]
     lmp = buf2[0]
     ar = buf2[1]
     amp = np.empty(q)
@@ -530,7 +594,7 @@ def _nb_move(mi, U, Z, S, logml, ref, kpost, tables, Q, q1, r, der, pk, mk, step
             for j in range(q):
                 U[i, j] = Up[i, j]
             for p in range(P):
-                Z[i, p] = Zp[i, p]
+                Zt[p, i] = Zp[i, p]
             for c in range(nch):
                 S[0, c, i] = Sp[0, c, i]
                 S[1, c, i] = Sp[1, c, i]
@@ -586,7 +650,8 @@ class TerrainFilter:
         M, P, nch = len(model.media), model.P, len(self.channels)
         self.mi = self.rng.integers(0, M, N).astype(np.int64)
         self.U = self.rng.random((N, q))
-        self.Z = np.empty((N, P))
+        self.mi.sort()  # runs of equal medium (see _nb_assimilate)
+        self.Zt = np.empty((P, N))
         _nb_table(model.table, self.mi, self.U, self.Z)
         self.S = np.zeros((3, nch, N))
         self.logml = np.zeros(N)
@@ -628,6 +693,25 @@ class TerrainFilter:
         self.acceptance: list[float] = []
         self.last_theta = None
 
+    @classmethod
+    def on_grid(cls, model: TerrainModel, channels: Sequence[Channel], points: int = 201, k_std: float = 0.1,
+                model_error: bool = True) -> "TerrainFilter":
+        """The exact Bayesian posterior by quadrature instead of sampling: one fixed, equally
+        weighted particle per medium and node of a regular grid of ``points`` per condition
+        (``points`` x ``points`` // 4 for two), no resampling. The reference the particle
+        filter is checked against (its marginal likelihoods are exact)."""
+        q = len(model.inputs)
+        pts = integer("points", points, 2)
+        axes = [np.linspace(0, 1, pts)] + ([np.linspace(0, 1, max(pts // 4, 2))] if q > 1 else [])
+        U = np.stack(np.meshgrid(*axes, indexing="ij"), -1).reshape(-1, q)
+        M = len(model.media)
+        f = cls(model, channels, k_std=k_std, n_particles=M * len(U), ess_threshold=0.0, move_sweeps=0,
+                model_error=model_error)
+        f.mi[:] = np.repeat(np.arange(M), len(U))
+        f.U[:] = np.tile(U, (M, 1))
+        _nb_table(model.table, f.mi, f.U, f.Z)
+        return f
+
     def check_theta(self, theta) -> float:
         """Validate a sample's angle (deg): finite, inside the model's stroke, and past the
         previous sample in the stroke's direction."""
@@ -665,7 +749,7 @@ class TerrainFilter:
         self.last_theta = t
         self.n_samples += 1
         ess = _nb_assimilate(k0, f, ys, self._noise2, self._R, self._RES2, self.Q, self.q1, self.r, self.n1,
-                             self.y1, self.yy, self.logc, self.der, self.pk, self.mk, self.pb, self.mi, self.Z,
+                             self.y1, self.yy, self.logc, self.der, self.pk, self.mk, self.pb, self.mi, self.Zt,
                              self.S, self.logml, self.ref, self.kpost, self._rows, self._wts, self._buf2)
         if ess < 0:  # nothing observed
             return self.ess
@@ -684,16 +768,25 @@ class TerrainFilter:
             mu = w @ self.U
             sd = np.sqrt(np.maximum(w @ (self.U - mu) ** 2, 0.0))
             step = np.clip(1.5 * sd, 1e-3, self.step)
-        _nb_resample(self.mi, self.U, self.Z, self.S, self.logml, self.ref, self.kpost, self._idx, self._buf)
+        _nb_resample(self.mi, self.U, self.Zt, self.S, self.logml, self.ref, self.kpost, self._idx, self._buf)
         if self.move_sweeps:
             for _ in range(self.move_sweeps):
                 seed = np.uint32(self.rng.integers(0, 2 ** 32, dtype=np.uint64))
-                acc = _nb_move(self.mi, self.U, self.Z, self.S, self.logml, self.ref, self.kpost, self.model.table,
+                acc = _nb_move(self.mi, self.U, self.Zt, self.S, self.logml, self.ref, self.kpost, self.model.table,
                                self.Q, self.q1, self.r, self.der, self.pk, self.mk, step, self.p_jump, seed, *self._mv)
                 self.acceptance.append(float(acc))
+            if self.p_jump > 0 and len(self.model.media) > 1:
+                _nb_sort(self.mi, self.U, self.Zt, self.S, self.logml, self.kpost, self._idx, self._buf,
+                         len(self.model.media))
+                self.ref[:] = self.logml
         self.ess = float(self.n)
 
     # -------------------------------------------------------------- posterior summaries
+    @property
+    def Z(self) -> np.ndarray:
+        """(N, P) the particles' surrogate coefficients [c, 1] (a view)."""
+        return self.Zt.T
+
     @property
     def weights(self) -> np.ndarray:
         lw = self.logml - self.ref
