@@ -294,6 +294,30 @@ def _interp_table(T, u0, u1, out):  # pragma: no cover - compiled
             out[p] = (1 - f0) * T[i0, 0, p] + f0 * T[i0 + 1, 0, p]
 
 
+@njit(cache=True, inline="always")
+def _interp_into(T, m, u0, u1, out, i):  # pragma: no cover - compiled
+    """out[i, :] = the bilinear interpolation of T[m] (G1, G2, P) at (u0, u1) in [0, 1]^2
+    (no array views: used per particle in the move)."""
+    G1, G2, P = T.shape[1], T.shape[2], T.shape[3]
+    x = min(max(u0, 0.0), 1.0) * (G1 - 1)
+    i0 = min(int(x), G1 - 2)
+    f0 = x - i0
+    if G2 > 1:
+        y = min(max(u1, 0.0), 1.0) * (G2 - 1)
+        j0 = min(int(y), G2 - 2)
+        f1 = y - j0
+        w00 = (1 - f0) * (1 - f1)
+        w01 = (1 - f0) * f1
+        w10 = f0 * (1 - f1)
+        w11 = f0 * f1
+        for p in range(P):
+            out[i, p] = (w00 * T[m, i0, j0, p] + w01 * T[m, i0, j0 + 1, p]
+                         + w10 * T[m, i0 + 1, j0, p] + w11 * T[m, i0 + 1, j0 + 1, p])
+    else:
+        for p in range(P):
+            out[i, p] = (1 - f0) * T[m, i0, 0, p] + f0 * T[m, i0 + 1, 0, p]
+
+
 @njit(cache=True)
 def _nb_table(T, mi, U, Z):  # pragma: no cover - compiled
     q = U.shape[1]
@@ -470,6 +494,15 @@ def _gather(idx, mi, U, Zt, S, logml, kpost, buf):  # pragma: no cover - compile
 
 
 @njit(cache=True)
+def _nb_runs(mi):  # pragma: no cover - compiled
+    """Number of runs of equal medium."""
+    n = 1
+    for i in range(1, mi.shape[0]):
+        n += mi[i] != mi[i - 1]
+    return n
+
+
+@njit(cache=True)
 def _nb_sort(mi, U, Zt, S, logml, kpost, idx, buf, M):  # pragma: no cover - compiled
     """Stable counting sort of the particles by medium (keeps the runs long)."""
     N = mi.shape[0]
@@ -552,8 +585,7 @@ def _nb_move(mi, U, Zt, S, logml, ref, kpost, tables, Q, q1, r, der, pk, mk, ste
         if not ok:
             ar[i] = -1.0
             continue
-        z = Zp[i]
-        _interp_table(tables[mn], Up[i, 0], Up[i, 1] if q > 1 else 0.0, z)
+        _interp_into(tables, mn, Up[i, 0], Up[i, 1] if q > 1 else 0.0, Zp, i)
         a = pk
         ek = pk * mk
         for c in range(nch):
@@ -561,12 +593,13 @@ def _nb_move(mi, U, Zt, S, logml, ref, kpost, tables, Q, q1, r, der, pk, mk, ste
             s1 = 0.0
             s2 = 0.0
             for p in range(P):
+                zp = Zp[i, p]
                 qz = 0.0
                 for p2 in range(P):
-                    qz += Q[mn, c, p, p2] * z[p2]
-                s0 += z[p] * qz
-                s1 += q1[mn, c, p] * z[p]
-                s2 += r[mn, c, p] * z[p]
+                    qz += Q[mn, c, p, p2] * Zp[i, p2]
+                s0 += zp * qz
+                s1 += q1[mn, c, p] * zp
+                s2 += r[mn, c, p] * zp
             Sp[0, c, i] = s0
             Sp[1, c, i] = s1
             Sp[2, c, i] = s2
@@ -761,21 +794,16 @@ class TerrainFilter:
     def resample(self) -> None:
         """Resample and (``move_sweeps`` > 0) rejuvenate by Metropolis-Hastings moves."""
         self.n_resamples += 1
-        step = self.step
-        if self.move_sweeps:
-            # random-walk scale from the current spread of the continuous conditions
-            w = self.weights
-            mu = w @ self.U
-            sd = np.sqrt(np.maximum(w @ (self.U - mu) ** 2, 0.0))
-            step = np.clip(1.5 * sd, 1e-3, self.step)
         _nb_resample(self.mi, self.U, self.Zt, self.S, self.logml, self.ref, self.kpost, self._idx, self._buf)
         if self.move_sweeps:
+            # random-walk scale from the spread of the (now equally weighted) conditions
+            step = np.clip(1.5 * self.U.std(axis=0), 1e-3, self.step)
             for _ in range(self.move_sweeps):
                 seed = np.uint32(self.rng.integers(0, 2 ** 32, dtype=np.uint64))
                 acc = _nb_move(self.mi, self.U, self.Zt, self.S, self.logml, self.ref, self.kpost, self.model.table,
                                self.Q, self.q1, self.r, self.der, self.pk, self.mk, step, self.p_jump, seed, *self._mv)
                 self.acceptance.append(float(acc))
-            if self.p_jump > 0 and len(self.model.media) > 1:
+            if self.p_jump > 0 and len(self.model.media) > 1 and _nb_runs(self.mi) > 4 * len(self.model.media):
                 _nb_sort(self.mi, self.U, self.Zt, self.S, self.logml, self.kpost, self._idx, self._buf,
                          len(self.model.media))
                 self.ref[:] = self.logml
