@@ -23,17 +23,7 @@ def _err(msg):
 def _conditions(at: List[str]) -> dict:
     from ..errors import InputError
 
-    out = {}
-    for a in at:
-        if "=" not in a:
-            raise InputError("at", f"expected NAME=VALUE, got {a!r}")
-        k, v = a.split("=", 1)
-        if k.strip() in out:
-            raise InputError("at", f"{k.strip()} given twice; give each condition once")
-        try:
-            out[k.strip()] = float(v)
-        except ValueError:
-            raise InputError("at", f"{k}: not a number: {v!r}") from None
+    out = _pairs(at, "at")
     if not out:
         raise InputError("at", "give the condition, e.g. --at omega=0.5")
     return out
@@ -231,10 +221,10 @@ def _pairs(items: List[str], field: str) -> dict:
     out = {}
     for a in items:
         if "=" not in a:
-            raise InputError(field, f"expected CHANNEL=VALUE, got {a!r}")
+            raise InputError(field, f"expected NAME=VALUE, got {a!r}")
         k, v = (x.strip() for x in a.split("=", 1))
         if k in out:
-            raise InputError(field, f"{k} given twice")
+            raise InputError(field, f"{k} given twice; give each once")
         try:
             out[k] = float(v)
         except ValueError:
@@ -246,7 +236,7 @@ def _register_terrain(dd: typer.Typer) -> None:
     @dd.command()
     def forecast(
         out: Path = typer.Option(Path("results/dddas_forecast"), "--out", "-o", help="Output folder (forecast.nc, summary.json, figures)."),
-        leg: List[Leg] = typer.Option([], "--leg", help="Leg(s) to run [default: flat, c, reverse-c, foot]."),
+        leg: List[Leg] = typer.Option([], "--leg", help="Leg(s) to run (default: all four: flat, c, reverse-c, foot)."),
         trials: int = typer.Option(20, help="Trials per medium (five media) and leg."),
         noise: float = typer.Option(0.05, help="Sensor noise std as a fraction of each channel's RMS."),
         bias: float = typer.Option(0.02, help="Sensor bias std as a fraction of each channel's RMS."),
@@ -279,14 +269,14 @@ def _register_terrain(dd: typer.Typer) -> None:
     def identify(
         obs: str = typer.Option(..., "--obs", help="Sensor CSV: theta_deg and any of Fx_N, Fz_N, torque_Nm, load_cell_N (empty = missing), or '-' for lines on standard input."),
         leg: Leg = typer.Option(Leg.flat, "--leg", help="Leg (the terrain model is trained on RFT sweeps of it)."),
-        noise: List[str] = typer.Option([], "--noise", help="CHANNEL=STD sensor noise in the channel's units (N; N m for torque) [default: 0.1 each]."),
-        bias_std: List[str] = typer.Option([], "--bias-std", help="CHANNEL=STD prior std of the channel's bias [default: 0]."),
+        noise: List[str] = typer.Option([], "--noise", help="CHANNEL=STD sensor noise in the channel's units (N; N m for torque); default 0.1 each."),
+        bias_std: List[str] = typer.Option([], "--bias-std", help="CHANNEL=STD prior std of the channel's bias; default 0."),
         lever_arm_cm: float = typer.Option(10.0, "--lever-arm-cm", help="Lever arm of the load cell (it reads torque / arm), cm."),
         k_std: float = typer.Option(0.1, help="Prior std of the strength factor k (zeta = k x zeta of the medium)."),
         particles: int = typer.Option(5000, help="Number of particles."),
         seed: int = typer.Option(0, help="Random seed."),
         stream_out: bool = typer.Option(False, "--stream", help="One JSON line per sample on stdout (terrain posterior and forecast of the rest of the stroke)."),
-        out: Optional[str] = typer.Option(None, "--out", "-o", help="Posterior trace .nc [default: CSV on stdout]."),
+        out: Optional[str] = typer.Option(None, "--out", "-o", help="Posterior trace .nc or .csv (default: CSV on stdout)."),
         plot: Optional[Path] = typer.Option(None, help="Figure of the posterior over the stroke (.png)."),
     ):
         """Identify the terrain (which of Li 2013's five media, zeta with a 95 % credible interval, hip
