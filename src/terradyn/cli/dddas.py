@@ -26,17 +26,7 @@ def _err(msg):
 def _conditions(at: List[str]) -> dict:
     from ..errors import InputError
 
-    out = {}
-    for a in at:
-        if "=" not in a:
-            raise InputError("at", f"expected NAME=VALUE, got {a!r}")
-        k, v = a.split("=", 1)
-        if not k.strip():
-            raise InputError("at", f"expected NAME=VALUE, got {a!r} (no name)")
-        try:
-            out[k.strip()] = float(v)
-        except ValueError:
-            raise InputError("at", f"{k}: not a number: {v!r}") from None
+    out = _pairs(at, "at")
     if not out:
         raise InputError("at", "give the condition, e.g. --at omega=0.5")
     return out
@@ -45,8 +35,10 @@ def _conditions(at: List[str]) -> dict:
 def _estimator(inputs, energy, step_energy, center, restarts, seed):
     from ..dddas import Surrogate
 
-    return Surrogate(inputs=inputs or None, energy=energy, step_energy=step_energy, center=center,
-                     n_restarts=restarts, random_state=seed)
+    est = Surrogate(inputs=inputs or None, energy=energy, step_energy=step_energy, center=center,
+                    n_restarts=restarts, random_state=seed)
+    est._check_params()  # bad hyperparameters fail before the data are read
+    return est
 
 
 def register(app: typer.Typer) -> None:
@@ -212,6 +204,8 @@ def register(app: typer.Typer) -> None:
                              title=f"{method.value} posterior after {n} samples")
         _err(f"assimilated {n} samples ({method.value})")
 
+    _register_terrain(dd)
+
     def _legs_summary(s):
         """A short human-readable summary on stderr: the data each leg used and its errors."""
         from rich.markup import escape
@@ -270,3 +264,139 @@ def register(app: typer.Typer) -> None:
         else:
             s = studies.foot_study(out, trial=trial, particles=particles, seed=seed, progress=_err)
         sys.stdout.write(json.dumps(s, indent=2, default=float) + "\n")
+
+
+# ---------------------------------------------------------------------------- terrain (issue 13)
+Leg = Enum("Leg", {k: k for k in ("flat", "c", "reverse-c", "foot")}, type=str)
+
+
+def _pairs(items: List[str], field: str) -> dict:
+    """NAME=VALUE options (each name once) -> dict of floats."""
+    from ..errors import InputError
+
+    out = {}
+    for a in items:
+        if "=" not in a:
+            raise InputError(field, f"expected NAME=VALUE, got {a!r}")
+        k, v = (x.strip() for x in a.split("=", 1))
+        if not k:
+            raise InputError(field, f"expected NAME=VALUE, got {a!r} (no name)")
+        if k in out:
+            raise InputError(field, f"{k} given twice; give each once")
+        try:
+            out[k] = float(v)
+        except ValueError:
+            raise InputError(field, f"{k}: not a number: {v!r}") from None
+    return out
+
+
+def _register_terrain(dd: typer.Typer) -> None:
+    @dd.command()
+    def forecast(
+        out: Path = typer.Option(Path("results/dddas_forecast"), "--out", "-o", help="Output folder (forecast.nc, summary.json, figures)."),
+        leg: List[Leg] = typer.Option([], "--leg", help="Leg(s) to run (default: all four: flat, c, reverse-c, foot)."),
+        trials: int = typer.Option(20, help="Trials per medium (five media) and leg."),
+        noise: float = typer.Option(0.05, help="Sensor noise std as a fraction of each channel's RMS."),
+        bias: float = typer.Option(0.02, help="Sensor bias std as a fraction of each channel's RMS."),
+        k_std: float = typer.Option(0.1, help="Std of the medium's strength factor k (prior and trials)."),
+        particles: int = typer.Option(5000, help="Particles of both particle filters."),
+        seed: int = typer.Option(0, help="Random seed."),
+    ):
+        """Forecast skill: assimilate 10 %, 20 %, ... 90 % of a stroke, forecast the rest, score against
+        the noise-free truth (prior, terrain filter, present filter, exact posterior, oracle, naive)."""
+        from ..dddas.forecast import forecast_study, summarise
+        from ..errors import InputError, integer
+        from ..io import check_writable
+
+        integer("trials", trials, 1)
+        if integer("particles", particles, 2) > 1_000_000:
+            raise InputError("particles", f"must be in [2, 1000000], got {particles}")
+        check_writable(out, "out", directory=True)
+        ds = forecast_study(out, [l.value for l in leg] or [l.value for l in Leg], trials,
+                            noise, bias, k_std, particles, seed, progress=_err)
+        s = summarise(ds)
+        for name, r in s["legs"].items():
+            tp, to = r["terrain_over"]["prior"], r["terrain_over"]["oracle"]
+            _err(f"{name} at 30 %: medium correct {100 * r['medium_correct']:.1f} %; forecast MSE terrain/prior "
+                 + ", ".join(f"{c} {v:.3f}" for c, v in tp.items()) + "; terrain/oracle "
+                 + ", ".join(f"{c} {v:.1f}" for c, v in to.items()))
+        _err(f"wrote {out}/forecast.nc, summary.json, forecast_mse.png, identification.png")
+        sys.stdout.write(json.dumps(s, indent=2) + "\n")
+
+    @dd.command()
+    def identify(
+        obs: str = typer.Option(..., "--obs", help="Sensor CSV: theta_deg and any of Fx_N, Fz_N, torque_Nm, load_cell_N (empty = missing), or '-' for lines on standard input."),
+        leg: Leg = typer.Option(Leg.flat, "--leg", help="Leg (the terrain model is trained on RFT sweeps of it)."),
+        noise: List[str] = typer.Option([], "--noise", help="CHANNEL=STD sensor noise in the channel's units (N; N m for torque); default 0.1 each."),
+        bias_std: List[str] = typer.Option([], "--bias-std", help="CHANNEL=STD prior std of the channel's bias; default 0."),
+        lever_arm_cm: float = typer.Option(10.0, "--lever-arm-cm", help="Lever arm of the load cell (it reads torque / arm), cm."),
+        k_std: float = typer.Option(0.1, help="Prior std of the strength factor k (zeta = k x zeta of the medium)."),
+        particles: int = typer.Option(5000, help="Number of particles."),
+        seed: int = typer.Option(0, help="Random seed."),
+        stream_out: bool = typer.Option(False, "--stream", help="One JSON line per sample on stdout (terrain posterior and forecast of the rest of the stroke)."),
+        out: Optional[str] = typer.Option(None, "--out", "-o", help="Posterior trace .nc or .csv (default: CSV on stdout)."),
+        plot: Optional[Path] = typer.Option(None, help="Figure of the posterior over the stroke (.png)."),
+    ):
+        """Identify the terrain (which of Li 2013's five media, zeta with a 95 % credible interval, hip
+        height / sinkage, foot length) from force samples as the stroke goes on."""
+        from .. import io
+        from ..dddas import plots
+        from ..dddas.terrain import TerrainFilter, TerrainModel, channels_for, parse_header, read_samples, stream, trace
+        from ..errors import InputError, integer, positive
+        from ..units import CM
+
+        noise_d, bias_d = _pairs(noise, "noise"), _pairs(bias_std, "bias-std")
+        arm = positive("lever-arm-cm", lever_arm_cm, "cm") * CM
+        if integer("particles", particles, 2) > 1_000_000:
+            raise InputError("particles", f"must be in [2, 1000000], got {particles}")
+        if out is not None:
+            io.check_output(out, "out", (".nc", ".csv"))
+        io.check_plot(plot)
+        if obs == "-":
+            lines = iter(sys.stdin)
+        else:
+            p = Path(obs)
+            if not p.is_file():
+                raise InputError("obs", f"file not found: {p}")
+            lines = iter(p.read_text().splitlines())
+        header = next((ln for ln in lines if ln.strip() and not ln.lstrip().startswith("#")), None)
+        if header is None:
+            raise InputError("observations", "no header line")
+        _, cols = parse_header(header)
+        channels = channels_for(list(cols), noise_d, bias_d, arm)
+        samples = read_samples(_chain(header, lines))
+        model = TerrainModel.from_rft(leg.value, seed=seed)
+        filt = TerrainFilter(model, channels, k_std=k_std, n_particles=particles, seed=seed)
+        if stream_out:
+            n = 0
+            for r in stream(filt, samples):
+                sys.stdout.write(json.dumps(r) + "\n")
+                sys.stdout.flush()
+                n += 1
+            if n == 0:
+                raise InputError("observations", "no samples on the stream (only a header?)")
+            _err(f"streamed {n} samples; most probable medium {filt.summary()['medium']}")
+            return
+        ds = trace(filt, samples)
+        if out and out.endswith(".nc"):
+            tmp = Path(out).with_name(f".{Path(out).name}.tmp")
+            ds.to_netcdf(tmp, engine="h5netcdf")
+            tmp.replace(out)
+        else:
+            text = ds.to_dataframe().reset_index().pivot_table(index="theta", columns="medium", values="p_medium")
+            table = ds.drop_vars("p_medium").drop_dims("medium").to_dataframe().join(
+                text.add_prefix("p_")).reset_index().rename(columns={"theta": "theta_deg"})
+            csv = table.to_csv(index=False, float_format="%.6g")
+            io.atomic_write_text(out, csv) if out else sys.stdout.write(csv)
+        if plot:
+            plots.terrain_trace(ds, plot, f"{leg.value}: terrain posterior during the stroke")
+        s = filt.summary()
+        z = s["zeta"]
+        _err(f"{s['samples']} samples: most probable medium {s['medium']} "
+             f"(P = {s['medium_probabilities'][s['medium']]:.3f}); zeta {z['mean']:.3f} "
+             f"[{z['lo']:.3f}, {z['hi']:.3f}] (95 %)")
+
+
+def _chain(header, lines):
+    yield header
+    yield from lines

@@ -467,7 +467,13 @@ class ParticleFilter:
     studies: less resampling noise than multinomial, Douc, Cappe & Moulines 2005, and cheaper:
     one uniform draw instead of N) or "multinomial" (the thesis's);
     ``ess_threshold``: resample when ESS < ess_threshold * N (1.0: after every sample, as in
-    the thesis); ``jitter``: Liu-West bandwidth h in [0, 1) (0: none); ``rng``: a
+    the thesis); ``jitter``: Liu-West bandwidth h in [0, 1) (0: none); ``move_sweeps``:
+    resample-move (Gilks & Berzuini 2001): after each resampling, that many random-walk
+    Metropolis-Hastings sweeps (Gaussian proposals with the particles' covariance x
+    2.38^2 / D) targeting the posterior given all samples so far, which on this linear model
+    needs only sufficient statistics (sum h h^T / sigma^2, sum (y - offset) h / sigma^2), so a
+    sweep costs O(N D^2) whatever the number of samples; the remedy for the degeneracy of
+    the copies resampling makes (0: none, the thesis's filter); ``rng``: a
     np.random.Generator or a seed; ``backend``: "numba" (float32 kernels, the fast path) or
     "numpy" (float64, straightforward; the benchmark's reference).
     """
@@ -475,7 +481,7 @@ class ParticleFilter:
     def __init__(self, prior_mean, prior_cov=None, *, prior_std=None, n_particles: int = 5000,
                  resample: str = "systematic", ess_threshold: float = 0.5, jitter: float = 0.1,
                  jitter_floor: float = 0.0, rng: np.random.Generator | int | None = 0,
-                 backend: str = "numba"):
+                 backend: str = "numba", move_sweeps: int = 0):
         m = finite_array("prior mean", prior_mean, ndim=1)
         D = len(m)
         if (prior_cov is None) == (prior_std is None):
@@ -501,6 +507,15 @@ class ParticleFilter:
         self._jfloor = floor * np.sqrt(np.sum(L * L, axis=1))  # prior std per coefficient
         self._has_floor = bool(self._jfloor.any())
         self.backend = choice("backend", backend, BACKENDS)
+        self.move_sweeps = integer("move-sweeps", move_sweeps, 0)
+        if self.move_sweeps > 100:
+            raise InputError("move-sweeps", f"must be an integer in [0, 100], got {move_sweeps!r}")
+        if self.move_sweeps:
+            self._prior_prec = np.linalg.pinv(L @ L.T)
+            self._prior_mean = m.copy()
+            self._Qs = np.zeros((D, D))
+            self._rs = np.zeros(D)
+            self.acceptance: list[float] = []
         self.rng = rng if isinstance(rng, np.random.Generator) else np.random.default_rng(rng)
         z = self.rng.standard_normal((N, D))
         C = m + z @ L.T
@@ -551,6 +566,10 @@ class ParticleFilter:
             ess = float(w.sum() ** 2 / (w * w).sum())
         self.ess = ess
         self.n_updates += 1
+        if self.move_sweeps:
+            hs = np.asarray(h, float) / sigma
+            self._Qs += np.outer(hs, hs)
+            self._rs += hs * ((y - offset) / sigma)
         if ess < self.ess_threshold * self.n or self.ess_threshold >= 1.0:
             self.resample()
         return ess
@@ -568,6 +587,8 @@ class ParticleFilter:
                          self.resample_method == "systematic", seed,
                          max(self.jitter, 1e-12) if self._has_floor else self.jitter, self._jfloor)
             self.ess = float(self.n)
+            if self.move_sweeps:
+                self.Ct[:] = self._move(self.Ct.T.astype(float)).T
             return
         w = np.exp(self._logw - self._logw.max())
         cw = np.cumsum(w)
@@ -583,9 +604,34 @@ class ParticleFilter:
             mu = X.mean(0)
             amp = np.maximum(self.jitter * X.std(0), self._jfloor)
             X = a * X + (1 - a) * mu + amp * self.rng.standard_normal(X.shape)
-        self.C = X
+        self.C = self._move(X) if self.move_sweeps else X
         self._logw[:] = 0.0
         self.ess = float(self.n)
+
+    def _move(self, C: np.ndarray) -> np.ndarray:
+        """Metropolis-Hastings sweeps on equally weighted particles C (N, D) targeting
+        prior x likelihood of all samples so far (a Gaussian: precision A, shift b)."""
+        A = self._prior_prec + self._Qs
+        b = self._prior_prec @ self._prior_mean + self._rs
+        D = C.shape[1]
+
+        def logt(X):
+            return -0.5 * np.einsum("nd,de,ne->n", X, A, X) + X @ b
+
+        cov = np.atleast_2d(np.cov(C.T)) * (2.38 ** 2 / D)
+        w, V = np.linalg.eigh(0.5 * (cov + cov.T))
+        L = V * np.sqrt(np.clip(w, 1e-30, None))
+        lt = logt(C)
+        acc = 0
+        for _ in range(self.move_sweeps):
+            prop = C + self.rng.standard_normal(C.shape) @ L.T
+            lp = logt(prop)
+            ok = np.log(self.rng.random(len(C))) < lp - lt
+            C[ok] = prop[ok]
+            lt[ok] = lp[ok]
+            acc += int(ok.sum())
+        self.acceptance.append(acc / (len(C) * self.move_sweeps))
+        return C
 
     @property
     def logw(self) -> np.ndarray:

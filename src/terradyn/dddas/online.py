@@ -19,6 +19,21 @@ from .filter import GaussianPosterior, ParticleFilter
 from .surrogate import Surrogate
 
 METHODS = ("pf", "exact")
+#: Largest observation accepted (N, N m): a guard against unit slips and overflow.
+MAX_OBS = 1e6
+
+
+def _check_order(v: np.ndarray, coord: str, surrogate: Surrogate | None = None) -> None:
+    """Samples must follow the motion: strictly monotonic, in the surrogate's direction."""
+    if len(v) < 2:
+        return
+    g = surrogate.coord_values_ if surrogate is not None else None
+    up = (g[-1] > g[0]) if g is not None else bool(v[1] > v[0])
+    d = np.diff(v) if up else -np.diff(v)
+    if (d <= 0).any():
+        k = int(np.argmax(d <= 0)) + 1
+        raise InputError("observations", f"{coord} must {'increase' if up else 'decrease'} from sample to sample "
+                                         f"(the motion's direction); sample {k + 1} goes from {v[k - 1]:g} to {v[k]:g}")
 
 
 class Assimilation:
@@ -110,8 +125,8 @@ class Assimilation:
                 continue
             if comp not in self.obs_std:
                 raise InputError(comp, "this surrogate does not model it")
-            if not math.isfinite(y):
-                raise InputError(comp, f"observation must be finite, got {y}")
+            if not math.isfinite(y) or abs(y) > MAX_OBS:
+                raise InputError(comp, f"observation must be finite and within +-{MAX_OBS:g}, got {y}")
             h, off, sigma = self._row(comp, float(coord_value))
             ess = self.post.update(h, off, float(y), sigma)
         self.n_samples += 1
@@ -137,9 +152,12 @@ class Assimilation:
         return self.prediction()
 
 
-def observations_arrays(obs: xr.Dataset, coord: str) -> tuple[np.ndarray, dict[str, np.ndarray]]:
+def observations_arrays(obs: xr.Dataset, coord: str, surrogate: Surrogate | None = None
+                        ) -> tuple[np.ndarray, dict[str, np.ndarray]]:
     """Coordinate values (m,) and component arrays (m,) with NaN for missing, from a series-like
-    Dataset (Fx and/or Fz; the motion coordinate ``coord``)."""
+    Dataset (Fx and/or Fz; the motion coordinate ``coord``). Checks: at least one sample,
+    the coordinate strictly monotonic (in the ``surrogate``'s direction when given), values
+    finite (or NaN: missing) and within +-:data:`MAX_OBS`."""
     if coord not in obs.coords and coord not in obs:
         raise InputError("observations", f"need the surrogate's motion coordinate {coord!r}")
     comps = {c: np.asarray(obs[c].values, float) for c in ("Fx", "Fz", "torque") if c in obs}
@@ -148,9 +166,16 @@ def observations_arrays(obs: xr.Dataset, coord: str) -> tuple[np.ndarray, dict[s
     v = np.asarray(obs[coord].values, float)
     if not np.isfinite(v).all():
         raise InputError("observations", f"{coord} contains NaN or inf")
+    if len(v) == 0:
+        raise InputError("observations", "no samples (only a header?)")
+    _check_order(v, coord, surrogate)
     for c, a in comps.items():
         if np.isinf(a).any():
             raise InputError("observations", f"{c} contains inf")
+        big = np.abs(np.nan_to_num(a)) > MAX_OBS
+        if big.any():
+            k = int(np.argmax(big))
+            raise InputError("observations", f"{c} sample {k + 1}: {a[k]:g} is beyond +-{MAX_OBS:g} N")
     return v, comps
 
 
@@ -160,7 +185,7 @@ def assimilate(surrogate: Surrogate, condition, observations: xr.Dataset, obs_st
     posterior force series (with Fx_std, Fz_std); attrs ``ess_min`` and
     ``samples_assimilated``. ``options`` go to :class:`Assimilation`."""
     a = Assimilation(surrogate, condition, obs_std, method, **options)
-    v, comps = observations_arrays(observations, surrogate.coord_)
+    v, comps = observations_arrays(observations, surrogate.coord_, surrogate)
     ess = np.empty(len(v))
     for i in range(len(v)):
         ess[i] = a.update(v[i], *(float(comps[c][i]) if c in comps else None for c in ("Fx", "Fz", "torque")))
@@ -199,9 +224,20 @@ def _obs_from_columns(columns, data, where: str) -> xr.Dataset:
     comps = [k for k in ("Fx", "Fz", "torque") if f"{k}_{units[k]}" in cols]
     if c is None or not {"Fx", "Fz"} & set(comps):
         raise InputError("observations", f"{where}: need a theta_deg or time_s column and Fx_N and/or Fz_N; got {cols}")
-    out = xr.Dataset(coords={c: np.asarray(data[f"{c}_deg" if c == "theta" else "time_s"], float)})
+    def numeric(col):
+        import pandas as pd
+
+        raw = pd.Series(np.asarray(data[col], dtype=object))
+        vals = pd.to_numeric(raw, errors="coerce").to_numpy(float)
+        bad = np.isnan(vals) & raw.notna().to_numpy() & (raw.astype(str).str.strip() != "").to_numpy()
+        if bad.any():
+            k = int(np.argmax(bad))
+            raise InputError("observations", f"{where}: {col} row {k + 1}: not a number: {str(raw[k]).strip()!r}")
+        return vals
+
+    out = xr.Dataset(coords={c: numeric(f"{c}_deg" if c == "theta" else "time_s")})
     for k in comps:
-        out[k] = (c, np.asarray(data[f"{k}_{units[k]}"], float))
+        out[k] = (c, numeric(f"{k}_{units[k]}"))
     return out
 
 
@@ -223,6 +259,9 @@ def stream_csv(assim: Assimilation, lines, every: int = 0, report=None) -> int:
     ic = header.index(coord)
     ix = header.index("Fx_N") if "Fx_N" in header else None
     iz = header.index("Fz_N") if "Fz_N" in header else None
+    g = assim.surrogate.coord_values_
+    up = 1.0 if g[-1] > g[0] else -1.0
+    last = None
     n = 0
     for lineno, line in enumerate(it, start=2):
         line = line.strip()
@@ -241,8 +280,18 @@ def stream_csv(assim: Assimilation, lines, every: int = 0, report=None) -> int:
         x = num(ic)
         if x is None:
             raise InputError("observations", f"line {lineno}: missing {coord}")
-        ess = assim.update(x, num(ix), num(iz))
+        vals = (num(ix), num(iz))
+        for name, y in zip(("Fx_N", "Fz_N"), vals):
+            if y is not None and not abs(y) <= MAX_OBS:
+                raise InputError("observations", f"line {lineno}: {name}: must be finite and within +-{MAX_OBS:g}, got {y!r}")
+        if last is not None and (x - last) * up <= 0:
+            raise InputError("observations", f"line {lineno}: {coord} must {'increase' if up > 0 else 'decrease'} "
+                                             f"(the motion's direction); {x:g} after {last:g}")
+        last = x
+        ess = assim.update(x, *vals)
         n += 1
         if report and every and n % every == 0:
             report(n, ess)
+    if n == 0:
+        raise InputError("observations", "no samples on the stream (only a header?)")
     return n

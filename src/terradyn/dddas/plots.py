@@ -180,3 +180,100 @@ def ess_trace(ess: np.ndarray, x: np.ndarray, path, n_particles: int, xlabel: st
     atomic_save(path, lambda t: fig.savefig(t, dpi=130))
     plt.close(fig)
     return path
+
+
+_METHOD_STYLE = {"prior": ("prior (surrogate, no data)", "0.5", "--"),
+                 "terrain": ("terrain filter (RB + resample-move)", "C3", "-"),
+                 "grid": ("exact Bayes (quadrature)", "C4", (0, (5, 2))),
+                 "pf": ("present particle filter (coefficients)", "C0", "-."),
+                 "exact": ("exact posterior (linear model)", "C2", ":"),
+                 "oracle": ("oracle (surrogate at the true condition)", "k", "-"),
+                 "naive": ("naive (hold last value)", "C1", (0, (1, 2)))}
+
+
+def forecast_mse(ds: xr.Dataset, path, title: str = "") -> Path:
+    """Forecast MSE of the rest of the stroke (mean over trials) against the stroke fraction
+    observed: one panel per leg and component, one line per method (log scale)."""
+    plt = _plt()
+    legs, comps = list(ds.leg.values), list(ds.component.values)
+    fig, axes = plt.subplots(len(legs), len(comps), figsize=(3.4 * len(comps), 2.6 * len(legs)),
+                             constrained_layout=True, squeeze=False)
+    frac = 100 * np.asarray(ds.fraction.values, float)
+    for i, leg in enumerate(legs):
+        for j, c in enumerate(comps):
+            ax = axes[i, j]
+            for m in ds.estimator.values:
+                label, color, ls = _METHOD_STYLE.get(str(m), (str(m), None, "-"))
+                y = ds["mse"].sel(leg=leg, component=c, estimator=m).mean("trial").values
+                ax.semilogy(frac, y, color=color, ls=ls, marker="o", ms=3, label=label)
+            u = UNITS.get(str(c), "")
+            ax.set_title(f"{leg}: {c}", fontsize=9)
+            ax.set_xlabel("stroke observed (%)")
+            ax.set_ylabel(f"forecast MSE ({u}$^2$)")
+            ax.grid(True, which="both", alpha=0.3)
+    h, lab = axes[0, 0].get_legend_handles_labels()
+    fig.legend(h, lab, loc="outside lower center", ncol=4, fontsize=8)
+    fig.suptitle(title or f"Forecast of the rest of the stroke vs noise-free truth "
+                 f"({ds.sizes['trial']} RFT trials per leg, {100 * float(ds.attrs.get('noise_fraction', 0)):g} % noise)",
+                 fontsize=10)
+    path = Path(path)
+    fig.savefig(path, dpi=150)
+    plt.close(fig)
+    return path
+
+
+def identification(ds: xr.Dataset, path, title: str = "") -> Path:
+    """Left: fraction of trials whose most probable medium is the true one, against the stroke
+    fraction observed, per leg. Right: one trial per leg, the posterior mean of zeta with its
+    95 % credible interval and the true zeta."""
+    plt = _plt()
+    fig, (a1, a2) = plt.subplots(1, 2, figsize=(10, 3.8), constrained_layout=True)
+    frac = 100 * np.asarray(ds.fraction.values, float)
+    for i, leg in enumerate(ds.leg.values):
+        c = f"C{i}"
+        a1.plot(frac, 100 * ds["correct"].sel(leg=leg).mean("trial"), "o-", color=c, ms=3, label=str(leg))
+        a1.plot(frac, 100 * ds["p_true_medium"].sel(leg=leg).mean("trial"), ":", color=c, lw=1)
+        z = ds.sel(leg=leg, trial=0)
+        a2.fill_between(frac, z["zeta_lo"], z["zeta_hi"], color=c, alpha=0.2)
+        a2.plot(frac, z["zeta_mean"], "o-", color=c, ms=3,
+                label=f"{leg} (true {z['true_medium'].item()})")
+        a2.axhline(float(z["zeta_true"]), color=c, ls="--", lw=1)
+    a1.axhline(95, color="k", ls="--", lw=1, label="target 95 %")
+    a1.set_xlabel("stroke observed (%)")
+    a1.set_ylabel("trials (%)")
+    a1.set_title("medium identified (solid: MAP correct; dotted: mean P(true))", fontsize=9)
+    a1.set_ylim(0, 102)
+    a1.legend(fontsize=7)
+    a2.set_xlabel("stroke observed (%)")
+    a2.set_ylabel("zeta (-)")
+    a2.set_title("zeta posterior mean, 95 % credible interval (band), truth (dashed)", fontsize=9)
+    a2.legend(fontsize=7)
+    if title:
+        fig.suptitle(title)
+    path = Path(path)
+    fig.savefig(path, dpi=150)
+    plt.close(fig)
+    return path
+
+
+def terrain_trace(ds: xr.Dataset, path, title: str = "") -> Path:
+    """The terrain posterior as the stroke goes on (from :func:`terradyn.dddas.terrain.trace`):
+    medium probabilities and zeta with its credible interval against the leg angle."""
+    plt = _plt()
+    fig, (a1, a2) = plt.subplots(2, 1, figsize=(6.5, 5.5), sharex=True, constrained_layout=True)
+    th = ds["theta"].values
+    for m in ds.medium.values:
+        a1.plot(th, ds["p_medium"].sel(medium=m), label=str(m))
+    a1.set_ylabel("posterior probability (-)")
+    a1.set_ylim(-0.02, 1.02)
+    a1.legend(fontsize=7)
+    a2.fill_between(th, ds["zeta_lo"], ds["zeta_hi"], alpha=0.3, label="95 % credible interval")
+    a2.plot(th, ds["zeta_mean"], label="posterior mean")
+    a2.set_ylabel("zeta (-)")
+    a2.set_xlabel(_xlabel("theta"))
+    a2.legend(fontsize=7)
+    fig.suptitle(title or "terrain posterior during the stroke")
+    path = Path(path)
+    fig.savefig(path, dpi=150)
+    plt.close(fig)
+    return path

@@ -250,12 +250,13 @@ def split_by_leg(data) -> dict:
 
 def _assimilation_run(sur: Surrogate, cond: dict, obs: xr.Dataset, obs_std: dict, particles: int,
                       seed: int, resample: str = "systematic", prior_floor: float = 1.0,
-                      jitter_floor: float = 0.0):
+                      jitter_floor: float = 0.0, move_sweeps: int = 0):
     """Assimilate ``obs`` with the particle filter and the exact posterior; returns the two
     posterior series, the prior, the ESS trace and the mean time per PF update."""
     coord = sur.coord_
+    moving = {"move_sweeps": move_sweeps, "jitter": 0.0} if move_sweeps else {}
     pf = Assimilation(sur, cond, obs_std, "pf", prior_floor=prior_floor, n_particles=particles, rng=seed,
-                      resample=resample, jitter_floor=jitter_floor)
+                      resample=resample, jitter_floor=0.0 if move_sweeps else jitter_floor, **moving)
     ex = Assimilation(sur, cond, obs_std, "exact", prior_floor=prior_floor)
     warmup()  # compile / load the kernels outside the timed loop
     prior = pf.prediction()
@@ -293,7 +294,7 @@ def _mse(a: xr.Dataset, b: xr.Dataset, v: str) -> float:
 
 def legs_study(out: str | Path, data=None, legs=LEGS, noise: float = 0.05,
                particles: int = 5000, seed: int = 0, energy: float = 0.95, test_case: int | None = None,
-               n_theta: int = 271, obs_every: int = 1, jitter_floor: float = 0.01,
+               n_theta: int = 271, obs_every: int = 1, jitter_floor: float = 0.01, move_sweeps: int = 1,
                progress: Callable[[str], None] | None = None) -> dict:
     """Surrogate, cross-validation and assimilation for the three legs.
 
@@ -308,7 +309,8 @@ def legs_study(out: str | Path, data=None, legs=LEGS, noise: float = 0.05,
     noise std as a fraction of the test case's RMS force per component; ``test_case``: index of
     the held-out case to assimilate (default: the middle one); ``obs_every``: assimilate every
     k-th sample; ``jitter_floor``: the particle filter's process noise (fraction of the prior
-    std; see :class:`ParticleFilter`). Writes per leg ``<leg>_data.nc``, ``<leg>_model.nc``, ``<leg>_cv.nc``,
+    std; see :class:`ParticleFilter`; used only without moves); ``move_sweeps``: resample-move
+    sweeps of the particle filter (Gilks & Berzuini 2001; 0: the thesis's filter). Writes per leg ``<leg>_data.nc``, ``<leg>_model.nc``, ``<leg>_cv.nc``,
     ``<leg>_cv.csv``, ``<leg>_posterior_pf.nc``, ``<leg>_posterior_exact.nc`` and figures."""
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
@@ -321,7 +323,8 @@ def legs_study(out: str | Path, data=None, legs=LEGS, noise: float = 0.05,
             warnings.warn(info["message"], UserWarning, stacklevel=2)
     rng = np.random.default_rng(seed)
     summary = {"study": "dddas-legs", "data": info, "legs": {}, "reported_cv_mse_N2": REPORTED_CV_MSE,
-               "noise_fraction": noise, "particles": particles, "seed": seed, "jitter_floor": jitter_floor}
+               "noise_fraction": noise, "particles": particles, "seed": seed, "jitter_floor": jitter_floor,
+               "move_sweeps": move_sweeps}
     from .. import io
 
     def tag(d: xr.Dataset) -> xr.Dataset:
@@ -381,7 +384,8 @@ def legs_study(out: str | Path, data=None, legs=LEGS, noise: float = 0.05,
             obs[v] = (coord, truth[v].values[sel] + obs_std[v] * rng.standard_normal(len(sel)))
         _say(progress, f"{shape}: assimilating {len(sel)} noisy samples of case {k} ({cond})")
         prior, post_pf, post_ex, ess, t_pf, n_res = _assimilation_run(sur_k, cond, obs, obs_std, particles, seed,
-                                                                      jitter_floor=jitter_floor)
+                                                                      jitter_floor=jitter_floor,
+                                                                      move_sweeps=move_sweeps)
         io.write(tag(post_pf), out / f"{shape}_posterior_pf.nc")
         io.write(tag(post_ex), out / f"{shape}_posterior_exact.nc")
         write_netcdf(tag(obs), out / f"{shape}_observations.nc")
@@ -514,3 +518,88 @@ def foot_study(out: str | Path, lengths_cm=None, test_cm: float = 29.0, max_deg:
         "resamples": int(n_res), "ess_min": float(ess.min()), **summary_truth}
     atomic_write_text(out / "summary_foot.json", json.dumps(summary, indent=2, default=float))
     return summary
+
+
+#: Estimators of :func:`speed_study`: the surrogate alone, the present particle filter
+#: (thesis setting: jitter + 1 % process noise), the particle filter with resample-move
+#: (Gilks & Berzuini 2001) and the exact Gaussian posterior.
+SPEED_METHODS = ("prior", "pf", "pf_move", "exact")
+
+
+def speed_study(out: str | Path | None = None, data=None, legs=LEGS, seeds=(0, 1), noise: float = 0.05,
+                particles: int = 5000, energy: float = 0.95, forecast_at: float = 0.3,
+                progress: Callable[[str], None] | None = None) -> dict:
+    """The thesis's speed study over every held-out condition (ten speeds per leg on the
+    shipped SPH set; see :func:`resolve_legs_data` for ``data``) and several noise seeds.
+    For each held-out case a surrogate is fitted on the others and the case is observed with
+    Gaussian noise (``noise`` x its RMS per component). Two scores against the held-out
+    curve: ``assimilation`` (all samples assimilated, the thesis's score) and ``forecast``
+    (the first ``forecast_at`` of the samples assimilated, the rest predicted). Estimators:
+    :data:`SPEED_METHODS`. Returns (and writes ``speed_study.json`` to ``out``) the mean MSE
+    per leg, score, estimator and component, and whether each filter is never worse than
+    the prior on average."""
+    noise = positive("noise", noise)
+    forecast_at = float(forecast_at)
+    if not 0 < forecast_at < 1:
+        raise InputError("forecast-at", f"must be in (0, 1), got {forecast_at!r}")
+    resolved, info = resolve_legs_data(data, legs)
+    warmup()
+    result = {"study": "dddas-speed", "data": info, "noise_fraction": noise, "seeds": list(seeds),
+              "particles": particles, "forecast_at": forecast_at, "legs": {}}
+    for shape in legs:
+        t0 = time.perf_counter()
+        rec = resolved[shape]
+        ds = rec["data"] if rec["data"] is not None else rft_standin(shape)
+        names = condition_names(ds)
+        speed = [n for n in ("omega", "omega_rad_s") if n in names]
+        inputs = speed[:1] if speed else names[:1]
+        n = ds.sizes["case"]
+        comps = ("Fx", "Fz")
+        mse = {sc: {m: {c: [] for c in comps} for m in SPEED_METHODS} for sc in ("assimilation", "forecast")}
+        for k in range(n):
+            sur = Surrogate(inputs=inputs, energy=energy, random_state=0).fit(ds.isel(case=np.arange(n) != k))
+            truth = ds.isel(case=k)
+            cond = {nm: float(truth[nm].values) for nm in inputs}
+            coord = sur.coord_
+            x = truth[coord].values
+            cut = int(round(forecast_at * len(x)))
+            for seed in seeds:
+                rng = np.random.default_rng([seed, k])
+                sd = {c: max(noise * float(np.sqrt(np.mean(truth[c].values ** 2))), 1e-6) for c in comps}
+                y = {c: truth[c].values + sd[c] * rng.standard_normal(len(x)) for c in comps}
+                runs = {"pf": Assimilation(sur, cond, sd, "pf", prior_floor=1.0, n_particles=particles, rng=seed,
+                                           jitter_floor=0.01),
+                        "pf_move": Assimilation(sur, cond, sd, "pf", prior_floor=1.0, n_particles=particles,
+                                                rng=seed, jitter=0.0, move_sweeps=1),
+                        "exact": Assimilation(sur, cond, sd, "exact", prior_floor=1.0)}
+                prior = runs["exact"].prediction()
+                fc = {}
+                for i in range(len(x)):
+                    if i == cut:
+                        fc = {m: a.prediction() for m, a in runs.items()}
+                    for a in runs.values():
+                        a.update(x[i], y["Fx"][i], y["Fz"][i])
+                post = {m: a.prediction() for m, a in runs.items()}
+                fc["prior"] = post["prior"] = prior
+                for m in SPEED_METHODS:
+                    for c in comps:
+                        t = truth[c].values
+                        mse["assimilation"][m][c].append(float(np.mean((post[m][c].values - t) ** 2)))
+                        mse["forecast"][m][c].append(float(np.mean((fc[m][c].values[cut:] - t[cut:]) ** 2)))
+        mean = {sc: {m: {c: float(np.mean(v)) for c, v in d.items()} for m, d in s.items()} for sc, s in mse.items()}
+        never_worse = {sc: {m: all(mean[sc][m][c] <= mean[sc]["prior"][c] for c in comps)
+                            for m in ("pf", "pf_move", "exact")} for sc in mse}
+        result["legs"][shape] = {"source": rec["source"], "data_label": rec["label"], "inputs": inputs,
+                                 "held_out_cases": int(n), "mse_mean_N2": mean, "never_worse_than_prior": never_worse,
+                                 "mse_N2": mse, "seconds": time.perf_counter() - t0}
+        _say(progress, f"{shape}: " + "; ".join(
+            f"{sc} MSE Fx/Fz prior {mean[sc]['prior']['Fx']:.4f}/{mean[sc]['prior']['Fz']:.4f}, pf "
+            f"{mean[sc]['pf']['Fx']:.4f}/{mean[sc]['pf']['Fz']:.4f}, pf+move {mean[sc]['pf_move']['Fx']:.4f}/"
+            f"{mean[sc]['pf_move']['Fz']:.4f}, exact {mean[sc]['exact']['Fx']:.4f}/{mean[sc]['exact']['Fz']:.4f}"
+            for sc in mse))
+    if out is not None:
+        from ..io import atomic_write_text
+
+        Path(out).mkdir(parents=True, exist_ok=True)
+        atomic_write_text(Path(out) / "speed_study.json", json.dumps(result, indent=2))
+    return result

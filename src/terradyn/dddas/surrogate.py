@@ -27,6 +27,12 @@ from .hosvd import hosvd
 
 FORMAT = "terradyn-dddas-surrogate"
 FORMAT_VERSION = 1
+#: GP optimizer restarts allowed (each one refits every coefficient's GP).
+MAX_RESTARTS = 100
+#: Largest training force accepted (N, N m): squares must stay finite in float64.
+MAX_FORCE = 1e12
+
+
 def _component_units() -> dict:
     from ..series import SCHEMAS, UNITS
 
@@ -127,7 +133,8 @@ class Surrogate(BaseEstimator):
         in_range("step_energy", self.step_energy, 1e-6, 1.0)
         if self.scaling not in ("rms", "none"):
             raise InputError("scaling", f"must be 'rms' or 'none', got {self.scaling!r}")
-        integer("n_restarts", self.n_restarts, 0)
+        if integer("restarts", self.n_restarts, 0) > MAX_RESTARTS:
+            raise InputError("restarts", f"must be an integer in [0, {MAX_RESTARTS}], got {self.n_restarts!r}")
         return comps
 
     def _kernel(self, q: int):
@@ -161,6 +168,8 @@ class Surrogate(BaseEstimator):
             raise InputError("training forces", f"shape {Y.shape} does not match {X.shape[0]} cases x {len(comps)} components")
         if X.shape[0] < 3:
             raise InputError("data", f"need at least 3 training cases, got {X.shape[0]}")
+        if np.abs(Y).max() > MAX_FORCE:
+            raise InputError("training forces", f"|force| must be <= {MAX_FORCE:g} N (N m), got up to {np.abs(Y).max():g}")
         if X.shape[1] != len(input_names):
             raise InputError("inputs", f"{len(input_names)} names for {X.shape[1]} condition columns")
         x_scale = X.std(axis=0)
