@@ -67,9 +67,10 @@ def test_geom_surfaces_are_closed_and_sized():
     assert body.mesh().is_watertight
 
 
-@pytest.mark.parametrize("mass, load, thickness, ramp", [(0.5, 0.0, 0.002, 4.0), (0.2, 20.0, 0.004, 3.0)])
+@pytest.mark.parametrize("mass, load, thickness, ramp", [(0.5, 0.0, 0.002, 8.0), (0.2, 20.0, 0.004, 3.0)])
 def test_static_sinkage_equals_closed_form_rft_depth(mass, load, thickness, ramp):
-    # a level box foot of mass m (and a load) set down slowly: a_b d A + buried sides = m g + load
+    # a level box foot of mass m (and a load) set down slowly (a faster ramp overshoots by
+    # inertia: 4 s instead of 8 s leaves the light foot 1.4 % deep): a_b d A + sides = m g + load
     size = (0.06, 0.04, thickness)
     res = md.press_foot(GLASS, load=load, mass=mass, size=size, ramp=ramp, hold=0.3)
     assert res["expected_depth_m"] > thickness  # buried: the closed form applies
@@ -251,7 +252,7 @@ def test_cli_bad_input_exits_2(tmp_path, capsys):
 def test_cli_press_prints_sinkage_against_closed_form(capsys):
     from terradyn.cli import main
 
-    assert main(["mujoco", "press", "--load-n", "20", "--ramp-s", "1", "--hold-s", "0.1"]) == 0
+    assert main(["mujoco", "press", "--load-n", "20", "--ramp-s", "2", "--hold-s", "0.1"]) == 0
     res = json.loads(capsys.readouterr().out)
     assert res["sinkage_cm"] == pytest.approx(res["closed_form_cm"], rel=0.03)
     assert main(["mujoco", "press", "--load-n", "-1"]) == 2

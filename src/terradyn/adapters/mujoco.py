@@ -64,7 +64,7 @@ import numpy as np
 
 from ..errors import InputError, finite, positive
 from ..rft3d import Body, Medium3D, from_trimesh, rotation_matrices
-from ..rft3d.engine import _element_force, _params
+from ..rft3d.engine import _block
 from ..rft3d.model import cap_tangential, coefficients, generic_alpha
 
 #: The 3D-RFT coefficient table (a compile-time constant of the step kernel).
@@ -160,11 +160,13 @@ def max_generic_stress() -> float:
 # Compiled step: all terrain bodies in one call
 # ------------------------------------------------------------------------------------------
 @numba.njit(cache=True, fastmath=True, error_model="numpy")
-def _terrain_wrenches(G, meta, anc, S, T, xpos, xmat, xipos, cvel, subtree_com, cdof, qacc,
+def _terrain_wrenches(G, P, meta, anc, S, T, xpos, xmat, xipos, cvel, subtree_com, cdof, qacc,
                       surface, stick_dt, out):  # pragma: no cover - compiled
     """RFT wrench (about the CoM, world frame) of every terrain body into out (nb, 6).
 
-    G (n, 7) elements of all bodies, body b's in [meta[b, 2], meta[b, 3]); meta[b, 0] body
+    G (7, n) elements of all bodies (rft3d's struct-of-arrays layout: cx, cy, cz, nx, ny, nz,
+    area), body b's in [meta[b, 2], meta[b, 3]); P (nb, 7) rft3d's kernel parameters per body
+    (xi_n, mu_surf, lambda rho, bounding sphere about the body origin); meta[b, 0] body
     id, meta[b, 1] its root body, meta[b, 4:6] its range in ``anc`` (the dofs that move it).
     S (nb, 76) static floats per body: [0] the largest element distance from the body origin
     (bodies wholly above the surface are skipped), [1:4] xi_n, mu_surf, lambda rho, [4:40] the
@@ -207,20 +209,9 @@ def _terrain_wrenches(G, meta, anc, S, T, xpos, xmat, xipos, cvel, subtree_com, 
         T[b, 13] = cv[4] + wz * dx - wx * dz
         T[b, 14] = cv[5] + wx * dy - wy * dx
         T[b, 21] = surface
-        # rft3d's element law; the depth test first (cheap: most elements are out of the bed)
-        Fx = Fy = Fz = Tx = Ty = Tz = 0.0
-        for i in range(meta[b, 2], meta[b, 3]):
-            oz = T[b, 9] * G[i, 0] + T[b, 10] * G[i, 1] + T[b, 11] * G[i, 2]
-            if surface - T[b, 2] - oz <= 0.0:
-                continue
-            fx, fy, fz, rx, ry, rz = _element_force(G, i, T, b, C[0], C[1], C[2], S[b, 1], S[b, 2], S[b, 3])
-            Fx += fx
-            Fy += fy
-            Fz += fz
-            Tx += ry * fz - rz * fy
-            Ty += rz * fx - rx * fz
-            Tz += rx * fy - ry * fx
-        out[b, 0], out[b, 1], out[b, 2], out[b, 3], out[b, 4], out[b, 5] = Fx, Fy, Fz, Tx, Ty, Tz
+        # rft3d's compiled element law (the same kernel as rft3d.wrench)
+        _block(G, T, b, meta[b, 2], meta[b, 3], C, P[b], out, b)
+        Fx, Fy, Fz, Tx, Ty, Tz = out[b, 0], out[b, 1], out[b, 2], out[b, 3], out[b, 4], out[b, 5]
         if stick_dt > 0.0:  # no-reversal cap: the terrain impulse can at most stop the body
             ex = xipos[bid, 0] - subtree_com[root, 0]
             ey = xipos[bid, 1] - subtree_com[root, 1]
@@ -275,7 +266,7 @@ def _kernel():
     if not _ENTRY:
         if not _terrain_wrenches.signatures:
             f, i = np.zeros((1, 6)), np.zeros((1, 6), np.int64)
-            _terrain_wrenches(np.zeros((1, 7)), i, np.zeros(1, np.int64), np.zeros((1, 76)),
+            _terrain_wrenches(np.zeros((7, 1)), np.zeros((1, 7)), i, np.zeros(1, np.int64), np.zeros((1, 76)),
                               np.zeros((1, 22)), np.ones((1, 3)), np.zeros((1, 9)), np.zeros((1, 3)),
                               f, np.zeros((1, 3)), f, np.zeros(1), 0.0, 0.0, f)
         sig = _terrain_wrenches.signatures[0]
@@ -370,12 +361,13 @@ class GranularTerrain:
                     if any(int(m.geom_type[g]) != int(mujoco.mjtGeom.mjGEOM_MESH) for g in gs) else None
             surf = body_surface(m, gs, name, me, self.sections)
             self.surfaces[name] = surf
-            p = surf.packed()
+            p = surf.packed()  # (7, n): rft3d's struct-of-arrays layout
             G.append(p)
-            meta.append((bid, int(m.body_rootid[bid]), lo, lo + len(p)))
-            rad.append(float(np.linalg.norm(p[:, :3], axis=1).max()))
-            lo += len(p)
-        self._G = np.ascontiguousarray(np.concatenate(G))
+            meta.append((bid, int(m.body_rootid[bid]), lo, lo + p.shape[1]))
+            rad.append(float(np.linalg.norm(p[:3], axis=0).max()))
+            lo += p.shape[1]
+        self._GT = np.ascontiguousarray(np.concatenate(G, axis=1))
+        self._G = self._GT.T  # (n, 7) rows, for per-element reads
         anc = []
         for k, bid in enumerate(self.body_ids):  # the dofs that move each body (its ancestors')
             start = len(anc)
@@ -389,7 +381,11 @@ class GranularTerrain:
         nb = len(self.body_ids)
         self._S = np.zeros((nb, 76))
         self._S[:, 0] = rad
-        self._S[:, 1:4] = _params(self.medium, self.dynamic_lambda)
+        self._S[:, 1:4] = (self.medium.xi_n, self.medium.mu_surf,
+                           (self.dynamic_lambda or 0.0) * self.medium.bulk_density)
+        self._P = np.zeros((nb, 7))  # rft3d's kernel parameters; sphere about the body origin
+        self._P[:, 0:3] = self._S[:, 1:4]
+        self._P[:, 6] = rad
         self._mobility_set = False
         self._bound = None
         self._T = np.zeros((nb, 22))
@@ -435,7 +431,7 @@ class GranularTerrain:
             mujoco.mj_fwdActuation(m, data)
             mujoco.mj_fwdAcceleration(m, data)
         if self._bound is not data:  # MjData arrays never move: bind their views once
-            self._args = (self._G, self._meta, self._anc, self._S, self._T, data.xpos, data.xmat,
+            self._args = (self._GT, self._P, self._meta, self._anc, self._S, self._T, data.xpos, data.xmat,
                           data.xipos, data.cvel, data.subtree_com, data.cdof, data.qacc_smooth)
             self._xfrc = data.xfrc_applied
             self._bound = data
