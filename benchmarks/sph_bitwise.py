@@ -26,7 +26,7 @@ ARR = ("x", "z", "vx", "vz", "rho", "sxx", "szz", "sxz", "syy", "gvx", "gvz", "f
 def state(s, extra):
     d = {k: np.array(getattr(s, k), copy=True) for k in ARR}
     d.update(extra)
-    d["builds"] = np.array(s._backend.builds)
+    d["builds"] = np.array(s.backend.builds)
     d["t"] = np.array(s.t)
     return d
 
@@ -48,7 +48,7 @@ def overflow_case():
                        n_theta=5).trajectory()
     s = solver.Solver(scenes.leg_scene(leg, traj, 0, bed_width=0.16, bed_depth=0.04,
                                        config=SPHConfig(dx=5e-3, settle_time=0.0)))
-    be = s._backend
+    be = s.backend
     be.nb = tuple(np.zeros((s.n, 3), a.dtype) if a.ndim == 2 else a for a in be.nb)
     be.bj = np.zeros((len(be.bidx), 3), np.int32)
     f = np.array([s.step() for _ in range(120)])

@@ -92,7 +92,7 @@ def test_verlet_lists_match_a_fresh_cell_search_every_step_and_fall_back_on_over
     for mode in ("verlet", "every step", "overflow"):
         s = solver.Solver(scenes.leg_scene(leg, traj, 0, bed_width=0.16, bed_depth=0.04,
                                            config=cfg))
-        be = s._backend
+        be = s.backend
         if mode == "overflow":  # lists 3 wide: every particle overflows
             be.nb = tuple(np.zeros((s.n, 3), a.dtype) if a.ndim == 2 else a for a in be.nb)
             be.bj = np.zeros((len(be.bidx), 3), np.int32)  # the walls' and leg's lists too
@@ -103,7 +103,7 @@ def test_verlet_lists_match_a_fresh_cell_search_every_step_and_fall_back_on_over
             f.append(s.step())
         runs[mode] = (s, np.array(f))
     (a, fa), (b, fb), (c, fc) = runs["verlet"], runs["every step"], runs["overflow"]
-    assert 1 < a._backend.builds < 100 and b._backend.builds == 300
+    assert 1 < a.backend.builds < 100 and b.backend.builds == 300
     assert np.abs(fa[:, 1]).max() > 0.1  # the leg is in the bed
     for s, f in ((b, fb), (c, fc)):
         assert np.allclose(a.x, s.x, rtol=0, atol=1e-10) and np.allclose(a.vz, s.vz, atol=1e-7)
@@ -111,20 +111,20 @@ def test_verlet_lists_match_a_fresh_cell_search_every_step_and_fall_back_on_over
     # the lists are half lists (each granular pair once, from its lower column; every wall
     # and leg particle), checked against brute force
     def half(s, k, radius):
-        X, Z, KND = s._srt[0], s._srt[1], s._srtk[0]
+        X, Z, KND = s.srt[0], s.srt[1], s.srtk[0]
         near = np.hypot(X - X[k], Z - Z[k]) < radius
         return near & ((KND != K.SOIL) | (np.arange(len(X)) > k))
 
-    soil = np.flatnonzero(c._srtk[0] == K.SOIL)
+    soil = np.flatnonzero(c.srtk[0] == K.SOIL)
     over = np.array([np.count_nonzero(half(c, k, 2 * c.h)) > 3 for k in soil])
     assert over.mean() > 0.5  # lists 3 wide overflow for most, and pass 2 knows it
-    assert np.all(c._backend.nb[1][soil[over]] == -1) and np.all(c._backend.nb[4][soil[over]] == -1)
-    assert (c._backend.bn == -1).mean() > 0.5 and (a._backend.bn > 3).mean() > 0.5
-    nbn = a._backend.nb[4]
+    assert np.all(c.backend.nb[1][soil[over]] == -1) and np.all(c.backend.nb[4][soil[over]] == -1)
+    assert (c.backend.bn == -1).mean() > 0.5 and (a.backend.bn > 3).mean() > 0.5
+    nbn = a.backend.nb[4]
     checked = 0
-    for k in np.flatnonzero(a._srtk[0] == K.SOIL)[::7]:
+    for k in np.flatnonzero(a.srtk[0] == K.SOIL)[::7]:
         inside = half(a, k, 2 * a.h)
-        if not (a._srtk[0][inside] == K.LEG).any():
+        if not (a.srtk[0][inside] == K.LEG).any():
             assert nbn[k] == np.count_nonzero(inside)
             checked += 1
     assert checked > 20
@@ -144,11 +144,11 @@ def test_pair_chunks_keep_every_write_in_the_next_chunk_and_sums_thread_independ
     s = solver.Solver(scenes.leg_scene(leg, traj, 0, bed_width=0.16, bed_depth=0.04,
                                        config=SPHConfig(dx=4e-3, settle_time=0.0)))
     s.advance(60)
-    be = s._backend
+    be = s.backend
     q = int(be.ip[K.IP.index("nchunk")])
     bounds = be.bounds[:q + 1]
     assert q >= 4 and bounds[0] == 0 and bounds[-1] == s.n and np.all(np.diff(bounds) > 0)
-    KND = s._srtk[0]
+    KND = s.srtk[0]
     vj, vn = be.nb[0], be.nb[1]
     chunk = np.searchsorted(bounds, np.arange(s.n), side="right") - 1
     soil = np.flatnonzero(KND == K.SOIL)
@@ -161,9 +161,9 @@ def test_pair_chunks_keep_every_write_in_the_next_chunk_and_sums_thread_independ
     # granular particles (the work), not of columns (the first rows are wall)
     b = solver.Solver(scenes.bed_scene(width=0.137, depth=0.0685, dx=2.5e-3, settle_time=0.0))
     b.advance(1)
-    q = int(b._backend.ip[K.IP.index("nchunk")])
-    chunk = np.searchsorted(b._backend.bounds[:q + 1], np.arange(b.n), side="right") - 1
-    per = np.bincount(chunk[b._srtk[0] == K.SOIL], minlength=q)
+    q = int(b.backend.ip[K.IP.index("nchunk")])
+    chunk = np.searchsorted(b.backend.bounds[:q + 1], np.arange(b.n), side="right") - 1
+    per = np.bincount(chunk[b.srtk[0] == K.SOIL], minlength=q)
     assert q == 8 and per.max() - per.min() <= 2, per
 
     code = """if True:
@@ -506,7 +506,7 @@ def test_state_dict_round_trip_keeps_dropped_grains_and_lists():
     b = solver.Solver(mk())
     b.load_state(st)
     assert b.lost == 1 and b.kind[i] == K.LOST and len(b.sidx) == len(a.sidx)
-    assert b._backend.builds == a._backend.builds
+    assert b.backend.builds == a.backend.builds
     ta, fa = a.advance(40)
     tb, fb = b.advance(40)
     assert np.array_equal(ta, tb) and np.array_equal(a.x, b.x) and np.array_equal(a.szz, b.szz)

@@ -108,7 +108,7 @@ _CHECKS = textwrap.dedent(r'''
     i = int(s.sidx[0])
     s.x[i], s.z[i] = 0.0, -0.2
     s.step()
-    s._drop_lost()
+    s.drop_lost()
     s.sync_to_host()
     out["dropped"] = [int(s.lost), n0 - len(s.sidx), int(s.kind[i]), float(s.x[i])]
 

@@ -538,7 +538,7 @@ class CPUBackend:
         done, nbad = cpu_steps(
             poses, dampings, forces, s.x, s.z, s.vx, s.vz, s.rho, s.sxx, s.szz, s.sxz, s.syy,
             s.gvx, s.gvz, s.acc_x, s.acc_z, s.nox, s.noz, s.dcl, s.guard, s.mass, s.kind, s.fleg,
-            s.bad, s._srt, s._srtk, s.cell_start, s.cell_index, self.bidx, s.lidx, self.body,
+            s.bad, s.srt, s.srtk, s.cell_start, s.cell_index, self.bidx, s.lidx, self.body,
             self.xb, self.zb, *self.nb, self.bj, self.bn, self.buf, self.cont, self.bounds,
             self.fp, self.ip, self.cl, self.clbox)
         return int(done), int(nbad)

@@ -105,8 +105,10 @@ class Solver:
                 raise InputError("scene", "leg particle count does not match the rigid body")
             self.dcl[self.lidx] = scene.leg.dcl
         self.fleg = np.zeros((n, 3))
-        self._srt = np.zeros((11, n))
-        self._srtk = np.zeros((3, n))
+        # the cell-ordered copy of the particle state the CPU passes read (rows: SRT_* of
+        # terradyn.sph.cpu; kinds and side offsets: SRTK_*), public for inspection and tests
+        self.srt = np.zeros((11, n))
+        self.srtk = np.zeros((3, n))
         self.guard = np.zeros(n)
         self.half_t = 0.0
         if scene.leg is not None:
@@ -155,9 +157,9 @@ class Solver:
         if self.backend_name == "gpu":
             from .gpu import GPUBackend
 
-            self._backend = GPUBackend(self)
+            self.backend = GPUBackend(self)  # the kernels' state (public: steps, to_host, counters)
         else:
-            self._backend = CPUBackend(self)
+            self.backend = CPUBackend(self)
 
     # ---------------------------------------------------------------------------------- setup
     def _max_leg_speed(self) -> float:
@@ -230,7 +232,7 @@ class Solver:
             poses[settling, POSE_HIP_VX:POSE_HIP_AZ + 1] = 0.0
             poses[settling, POSE_OMEGA:POSE_ALPHA + 1] = 0.0
         forces = np.zeros((n, 3))
-        done, nbad = self._backend.steps(poses, dampings, forces)
+        done, nbad = self.backend.steps(poses, dampings, forces)
         self.t = ts[done] if done < n else t
         self.step_count += done
         if nbad:
@@ -241,19 +243,19 @@ class Solver:
                       f"{self.c0:.3g} m/s" if finite else "non-finite position, density or stress")
             raise SPHInstabilityError(self.step_count, self.t, i, (self.x[i], self.z[i]), reason)
         if self._box is not None and self.step_count % 50 == 0:
-            self._drop_lost()
+            self.drop_lost()
         return ts[:done], forces[:done]
 
-    def _drop_lost(self):
+    def drop_lost(self):
         """Park granular particles that left the container far away as kind LOST."""
-        self.lost += self._backend.drop_lost(self._box)
+        self.lost += self.backend.drop_lost(self._box)
 
     # ------------------------------------------------------------------ host/device state
     def sync_to_host(self) -> None:
         """Bring the solver's arrays (:data:`DEVICE_OWNED`) up to date from the backend (GPU:
         copies the device state back, and the next step copies the host arrays, edits
         included, to the device; CPU: nothing to do)."""
-        self._backend.to_host()
+        self.backend.to_host()
 
     @property
     def state(self) -> "Solver":
@@ -288,9 +290,9 @@ class Solver:
         d = {name: getattr(self, name) for name in Particles.STATE}
         d.update(t=np.array(self.t), step_count=np.array(self.step_count), kind=self.kind,
                  lost=np.array(self.lost))
-        backend_state = getattr(self._backend, "state_dict", None)
+        backend_state = getattr(self.backend, "state_dict", None)
         if backend_state is not None:
-            d.update({f"{self._backend.name}_{k}": v for k, v in backend_state().items()})
+            d.update({f"{self.backend.name}_{k}": v for k, v in backend_state().items()})
         return d
 
     def load_state(self, d) -> None:
@@ -308,10 +310,10 @@ class Solver:
             self.sidx = np.flatnonzero(self.kind == SOIL).astype(np.int64)
         if "lost" in keys:
             self.lost = int(d["lost"])
-        pre = f"{self._backend.name}_"
+        pre = f"{self.backend.name}_"
         own = {k[len(pre):]: d[k] for k in keys if k.startswith(pre)}
-        if own and hasattr(self._backend, "load_state"):
-            self._backend.load_state(own)
+        if own and hasattr(self.backend, "load_state"):
+            self.backend.load_state(own)
 
 
 def scene_key(scene: Scene, extra: dict | None = None) -> str:
