@@ -133,7 +133,7 @@ def _alpha(coef, c2, s2, cg, sg):  # pragma: no cover - compiled
     return ax, az
 
 
-@numba.njit(parallel=True, fastmath=True, cache=True, error_model="numpy")
+@numba.njit(parallel=True, fastmath=True, cache=True, error_model="numpy", nogil=True)
 def _fourier_kernel(sx, sz, c2b, s2b, area, hx, hz, vhx, vhz, ang_c, ang_s, c2t, s2t, w,
                     coef, surface, out):  # pragma: no cover - compiled
     """Fourier fit for any planar motion (the hip may move).
@@ -176,7 +176,7 @@ def _fourier_kernel(sx, sz, c2b, s2b, area, hx, hz, vhx, vhz, ang_c, ang_s, c2t,
         out[d, j, 2] = tq_sum
 
 
-@numba.njit(parallel=True, fastmath=True, cache=True, error_model="numpy")
+@numba.njit(parallel=True, fastmath=True, cache=True, error_model="numpy", nogil=True)
 def _fourier_rotation_kernel(G, T, a00, surface, out):  # pragma: no cover - compiled
     """Fourier fit for a rotation about a hip at rest (any angle history, any omega(t)).
 
@@ -234,9 +234,9 @@ def _fourier_rotation_kernel(G, T, a00, surface, out):  # pragma: no cover - com
 # Serial twins of the parallel kernels (prange runs as range): a small call must not pay for
 # a parallel region (on a busy 2-core machine the standard curve took 0.52 ms with two Numba
 # threads against 0.038 ms single-threaded). :func:`_net_fourier` picks by the work size.
-_fourier_kernel_serial = numba.njit(fastmath=True, cache=True, error_model="numpy")(
+_fourier_kernel_serial = numba.njit(fastmath=True, cache=True, error_model="numpy", nogil=True)(
     _fourier_kernel.py_func)
-_fourier_rotation_kernel_serial = numba.njit(fastmath=True, cache=True, error_model="numpy")(
+_fourier_rotation_kernel_serial = numba.njit(fastmath=True, cache=True, error_model="numpy", nogil=True)(
     _fourier_rotation_kernel.py_func)
 
 #: Element evaluations (designs x steps x elements) from which the Fourier kernels run in

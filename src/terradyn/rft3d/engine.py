@@ -193,7 +193,7 @@ def _cubic(c, x1, x2, x3, x11, x22, x33):  # pragma: no cover - compiled
             + c[19] * x1 * x2 * x3)
 
 
-@numba.njit(fastmath=True, cache=True, error_model="numpy")
+@numba.njit(fastmath=True, cache=True, error_model="numpy", nogil=True)
 def _block(G, T, j, lo, hi, C, prm, out, k):  # pragma: no cover - compiled
     """Sum of the wrenches of elements lo..hi at pose j into out[k] (Fx, Fy, Fz, Tx, Ty, Tz).
 
@@ -279,7 +279,7 @@ def _block(G, T, j, lo, hi, C, prm, out, k):  # pragma: no cover - compiled
     out[k, 5] = Tz
 
 
-@numba.njit(fastmath=True, cache=True, error_model="numpy")
+@numba.njit(fastmath=True, cache=True, error_model="numpy", nogil=True)
 def _wrench_serial(G, T, C, prm, out):  # pragma: no cover - compiled
     """Net wrench of every pose, serial. G (n, 7) body; T (S, 22) poses; C (3, 20) coefficients;
     prm (7,) see :func:`_block`; out (S, 6)."""
@@ -288,7 +288,7 @@ def _wrench_serial(G, T, C, prm, out):  # pragma: no cover - compiled
         _block(G, T, j, 0, n, C, prm, out, j)
 
 
-@numba.njit(parallel=True, fastmath=True, cache=True, error_model="numpy")
+@numba.njit(parallel=True, fastmath=True, cache=True, error_model="numpy", nogil=True)
 def _wrench_parallel(G, T, C, prm, nblk, part):  # pragma: no cover - compiled
     """Parallel over poses x element blocks; part (S * nblk, 6) partial sums."""
     n = G.shape[1]
@@ -302,7 +302,7 @@ def _wrench_parallel(G, T, C, prm, nblk, part):  # pragma: no cover - compiled
         _block(G, T, j, lo, hi, C, prm, part, k)
 
 
-@numba.njit(fastmath=True, cache=True, error_model="numpy")
+@numba.njit(fastmath=True, cache=True, error_model="numpy", nogil=True)
 def _wrench_one(G, C, prm, X, q, V, W, P, h, T, out):  # pragma: no cover - compiled
     """One pose from raw vectors (X, q w-x-y-z, V, W, P (3,), h scalar) into T (1, 22) and
     out (1, 6): the per-step call of a physics engine, no NumPy temporaries."""
