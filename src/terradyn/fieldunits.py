@@ -151,6 +151,9 @@ def motion3d_from_field_units(motion: Path | None = None, axis: str = "0,1,0", c
     c = parse_vector("center-cm", center_cm, 3, "cm") * CM
     p0 = c if position_cm is None else parse_vector("position-cm", position_cm, 3, "cm") * CM
     q0 = parse_vector("quat", quat, 4)
+    from .rft3d.engine import check_quaternions
+
+    check_quaternions(q0[None, :], "quat")  # named as the user typed it
     positive("omega", omega, "rad/s")
     if angle_end_deg <= angle_start_deg:
         raise InputError("angle-end-deg", f"must be > --angle-start-deg ({angle_start_deg:g} deg), got {angle_end_deg:g}")
