@@ -111,7 +111,8 @@ def main():
     out.write_text(json.dumps({
         "machine": {"cpu": platform.processor() or platform.machine(), "cores": os.cpu_count(),
                     "load_average_1min_at_end": os.getloadavg()[0], "python": platform.python_version(),
-                    "mujoco": mujoco.__version__, "note": "shared 2-core machine, busy with other developers' work"},
+                    "mujoco": mujoco.__version__,
+                    "note": "the load average says how busy the machine was (other users' work counts)"},
         "command": "python benchmarks/bench_mujoco_terrain.py" + (" --quick" if QUICK else ""),
         "robot": "demo hexapod (terradyn.adapters.mujoco_demo), C legs, poppy LP, 7 terrain bodies",
         "target_terrain_share_of_step": target, "cases": cases, "ratios": ratios, "verdict": verdict,

@@ -157,7 +157,7 @@ def main() -> None:
                     "python": platform.python_version(), "numba": numba.__version__,
                     "numba_threads": numba.get_num_threads(),
                     "threading_layer_env": os.environ.get("NUMBA_THREADING_LAYER", "default"),
-                    "note": "shared 2-core machine, busy with other developers' work"},
+                    "note": "each row records the load average before it (other users' work counts)"},
         "parallel_min_work_3d": e3.PARALLEL_MIN_WORK, "parallel_min_work_2d": e2.PARALLEL_MIN_WORK,
         "quick": QUICK, "rows": rows}, indent=2))
     print(f"wrote {OUT}", file=sys.stderr)
