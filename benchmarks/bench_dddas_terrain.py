@@ -17,7 +17,6 @@ from __future__ import annotations
 import json
 import os
 import platform
-import subprocess
 import sys
 import time
 from pathlib import Path
@@ -27,6 +26,9 @@ import numpy as np
 from terradyn.dddas.filter import ParticleFilter, warmup
 from terradyn.dddas.forecast import _pooled, make_trial
 from terradyn.dddas.terrain import Channel, TerrainFilter, TerrainModel
+
+sys.path.insert(0, str(Path(__file__).parent))
+from bench_threading import hogs  # noqa: E402  (the same two busy processes)
 
 QUICK = "--quick" in sys.argv
 N = 5000
@@ -90,8 +92,6 @@ def parts(model, tr, repeats=200):
     return out
 
 
-def hogs(n):
-    return [subprocess.Popen([sys.executable, "-c", "while True: pass"]) for _ in range(n)]
 
 
 def main():
