@@ -171,8 +171,9 @@ def from_medium(medium: str, youngs: float = NUMERICAL_E, poisson: float = 0.3,
     if dilatancy == "bolton" and medium.endswith(" CP"):
         loose = MEDIA.get(medium[:-3] + " LP")
         if loose is None:
-            raise InputError("dilatancy", f"{medium!r} has no loosely packed sibling in "
-                             f"{LI2013} Table S1 to define its critical state: use 'none'")
+            raise InputError("dilatancy", f"{medium!r} has no loosely packed sibling in Li "
+                             "2013 Table S1 to define its critical state: use 'none' (or 'bolton' "
+                             "for poppy CP, 0.3 mm glass CP)")
         if friction_deg is not None or friction != "repose":
             raise InputError("dilatancy", "'bolton' sets the friction angle itself (the loose "
                              "packing's); drop friction_deg / friction='calibrated'")
