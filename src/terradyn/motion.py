@@ -125,6 +125,16 @@ def check_time(time) -> np.ndarray:
     return t
 
 
+def spline_derivative(t: np.ndarray, y: np.ndarray) -> np.ndarray:
+    """d y / d t at the samples ``t`` (strictly increasing) of samples ``y`` (S, ...): the
+    derivative of a cubic spline along axis 0; two samples: their constant slope."""
+    if len(t) < 3:
+        return np.broadcast_to((y[-1] - y[0]) / (t[-1] - t[0]), np.shape(y)).copy()
+    from scipy.interpolate import CubicSpline
+
+    return CubicSpline(t, y, axis=0)(t, 1)
+
+
 def read_columns(path: str | Path, field: str, need: tuple[str, ...]) -> np.ndarray:
     """Rows (k, len(need)) of the named numeric columns of a CSV file; InputError naming
     ``field`` for a missing file or column, a non-numeric or non-finite value, or no rows."""
@@ -177,18 +187,11 @@ class PlanarMotion:
             object.__setattr__(self, name, a)
 
     def trajectory(self) -> Trajectory:
-        from scipy.interpolate import CubicSpline
-
         t = self.time
-
-        def deriv(y):
-            if len(t) < 3:
-                return np.full_like(t, (y[-1] - y[0]) / (t[-1] - t[0]))
-            return CubicSpline(t, y)(t, 1)
-
-        vx = self.hip_vx if self.hip_vx is not None else deriv(self.hip_x)
-        vz = self.hip_vz if self.hip_vz is not None else deriv(self.hip_z)
-        w = self.angular_velocity if self.angular_velocity is not None else deriv(self.angle)
+        d = lambda y: spline_derivative(t, y)  # noqa: E731
+        vx = self.hip_vx if self.hip_vx is not None else d(self.hip_x)
+        vz = self.hip_vz if self.hip_vz is not None else d(self.hip_z)
+        w = self.angular_velocity if self.angular_velocity is not None else d(self.angle)
         return Trajectory(t, self.hip_x, self.hip_z, vx, vz, self.angle, w, coord="time")
 
     def describe(self) -> dict:

@@ -15,7 +15,7 @@ from pathlib import Path
 import numpy as np
 
 from ..errors import InputError, finite, finite_array, integer, positive
-from ..motion import check_time, read_columns
+from ..motion import check_time, read_columns, spline_derivative
 from ..units import CM, DEG
 from .engine import check_quaternions
 
@@ -87,21 +87,13 @@ class RigidMotion:
             object.__setattr__(self, name, a)
 
     def poses(self) -> Poses:
-        from scipy.interpolate import CubicSpline
-
         t = self.time
-
-        def deriv(y):
-            if len(t) < 3:
-                return np.broadcast_to((y[-1] - y[0]) / (t[-1] - t[0]), y.shape).copy()
-            return CubicSpline(t, y, axis=0)(t, 1)
-
-        V = self.velocity if self.velocity is not None else deriv(self.position)
+        V = self.velocity if self.velocity is not None else spline_derivative(t, self.position)
         if self.angular_velocity is not None:
             W = self.angular_velocity
         else:
             q = self.quaternion
-            qd = deriv(q)
+            qd = spline_derivative(t, q)
             conj = q * np.array([1.0, -1, -1, -1])
             W = 2 * quat_multiply(qd, conj)[:, 1:]
         return Poses(t, self.position, self.quaternion, V, W)
