@@ -169,7 +169,7 @@ def _terrain_wrenches(G, P, meta, anc, S, T, xpos, xmat, xipos, cvel, subtree_co
     (xi_n, mu_surf, lambda rho, bounding sphere about the body origin); meta[b, 0] body
     id, meta[b, 1] its root body, meta[b, 4:6] its range in ``anc`` (the dofs that move it).
     S (nb, 76) static floats per body: [0] the largest element distance from the body origin
-    (bodies wholly above the surface are skipped), [1:4] xi_n, mu_surf, lambda rho, [4:40] the
+    (bodies wholly above the surface are skipped), [1:4] unused (the law's parameters are in P), [4:40] the
     6 x 6 mobility J M^-1 J^T of the CoM twist (v, omega) in the body frame, [40:76] its
     (pseudo-)inverse, the effective inertia M_b. T (nb, 22) pose
     rows (scratch).
@@ -381,10 +381,9 @@ class GranularTerrain:
         nb = len(self.body_ids)
         self._S = np.zeros((nb, 76))
         self._S[:, 0] = rad
-        self._S[:, 1:4] = (self.medium.xi_n, self.medium.mu_surf,
-                           (self.dynamic_lambda or 0.0) * self.medium.bulk_density)
         self._P = np.zeros((nb, 7))  # rft3d's kernel parameters; sphere about the body origin
-        self._P[:, 0:3] = self._S[:, 1:4]
+        self._P[:, 0:3] = (self.medium.xi_n, self.medium.mu_surf,
+                           (self.dynamic_lambda or 0.0) * self.medium.bulk_density)
         self._P[:, 6] = rad
         self._mobility_set = False
         self._bound = None
