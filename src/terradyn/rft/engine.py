@@ -314,7 +314,7 @@ def _net_fourier(packed: PackedElements, traj: Trajectory, fit: FourierFit, surf
     rot_kernel = _fourier_rotation_kernel if parallel else _fourier_rotation_kernel_serial
     kernel = _fourier_kernel if parallel else _fourier_kernel_serial
     if traj.hip_at_rest:  # rotation about a hip at rest: harmonic form
-        rot_kernel(packed.harmonics(fit), traj.kernel_rotation_table(dt), fit.A00, surface, out)
+        rot_kernel(packed.harmonics(fit), traj.kernel_rotation_table(dt), dt.type(fit.A00), dt.type(surface), out)
     else:
         kernel(packed.sx, packed.sz, packed.c2b, packed.s2b, packed.area, hx, hz, vhx, vhz, c1, s1, c2, s2, w, fit.as_array(dt), dt.type(surface), out)
     return out

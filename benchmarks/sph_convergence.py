@@ -1,0 +1,96 @@
+"""Resolution convergence of the SPH model (issue 17, item 4): the plate test (Li 2013 Table S3)
+and the three legs' peaks in the rotating-leg test (Li 2013 Fig. S5) at several particle
+spacings, with the change between successive resolutions.
+
+    python benchmarks/sph_convergence.py [--medium "poppy LP"] [--dx-mm 2 2.5 3 4]
+        [--youngs-mpa 0.25] [--omega 1.1] [--realizations 2] [--threads 1]
+
+Writes benchmarks/results/sph_convergence.json after every run (finished runs are kept and
+skipped on a rerun, so the study can be interrupted and resumed). A study, not a timing
+benchmark: wall times are recorded as run, on whatever else the machine was doing."""
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import platform
+import time
+from pathlib import Path
+
+OUT = Path(__file__).parent / "results" / "sph_convergence.json"
+LEGS = ("flat", "c", "reverse-c")
+
+
+def _changes(runs: dict, medium: str, e: float) -> dict:
+    """Relative change of every quantity between successive resolutions (coarse -> fine)."""
+    by_dx: dict[float, dict] = {}
+    for r in runs.values():
+        if r["medium"] == medium and r["youngs_MPa"] == e:
+            q = by_dx.setdefault(r["dx_mm"], {})
+            if r["scene"] == "plate":
+                q["plate alpha_z (through origin)"] = r["alpha_z_origin_N_cm3"]
+                q["plate slope (free fit)"] = r["slope_free_N_cm3"]
+            else:
+                q[f"{r['scene']} lift peak"] = r["Fz"]["peak_sph"]
+                q[f"{r['scene']} thrust peak"] = r["Fx"]["peak_sph"]
+    dxs = sorted(by_dx, reverse=True)
+    out = {}
+    for a, b in zip(dxs, dxs[1:]):
+        common = sorted(set(by_dx[a]) & set(by_dx[b]))
+        out[f"{a:g} -> {b:g} mm"] = {k: round(by_dx[b][k] / by_dx[a][k] - 1.0, 4) for k in common}
+    return out
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--medium", default="poppy LP")
+    ap.add_argument("--dx-mm", type=float, nargs="+", default=[2.0, 2.5, 3.0, 4.0])
+    ap.add_argument("--youngs-mpa", type=float, default=0.25)
+    ap.add_argument("--omega", type=float, default=1.1, help="leg angular speed, rad/s")
+    ap.add_argument("--realizations", type=int, default=2)
+    ap.add_argument("--threads", type=int, default=1)
+    a = ap.parse_args()
+    os.environ["NUMBA_NUM_THREADS"] = str(a.threads)  # before numba is imported
+
+    from terradyn.io import atomic_write_text
+    from terradyn.sph.calibration import plate_slope
+    from terradyn.sph.materials import from_medium
+    from terradyn.sph.state import SPHConfig
+    from terradyn.sph.suite import leg_vs_measured
+    from terradyn.sph.validation import alpha_z_plate_measured
+    from terradyn.units import DEG, N_PER_CM3
+
+    res = json.loads(OUT.read_text()) if OUT.exists() else {
+        "machine": f"{platform.machine()}, {os.cpu_count()} cores (shared with other work)",
+        "command": "python benchmarks/sph_convergence.py", "runs": {}}
+    mat = from_medium(a.medium, youngs=a.youngs_mpa * 1e6)
+    for dx in a.dx_mm:
+        cfg = SPHConfig(dx=dx * 1e-3)
+        for scene in ("plate",) + LEGS:
+            key = f"{scene}|{a.medium}|{a.youngs_mpa:g}MPa|{dx:g}mm|omega{a.omega:g}"
+            if key in res["runs"]:
+                continue
+            t0 = time.perf_counter()
+            base = {"scene": scene, "medium": a.medium, "youngs_MPa": a.youngs_mpa, "dx_mm": dx,
+                    "omega": a.omega, "friction_deg": round(mat.friction / DEG, 2),
+                    "threads": a.threads}
+            if scene == "plate":
+                r = plate_slope(mat, config=cfg, realizations=a.realizations)
+                val = base | {"alpha_z_origin_N_cm3": round(r["alpha_z"] / N_PER_CM3, 4),
+                              "alphas_N_cm3": [round(x / N_PER_CM3, 4) for x in r["alphas"]],
+                              "slope_free_N_cm3": round(r["slope"] / N_PER_CM3, 4),
+                              "intercept_kPa": round(r["intercept_Pa"] / 1e3, 3),
+                              "measured_N_cm3": alpha_z_plate_measured(a.medium) / N_PER_CM3}
+            else:
+                r = leg_vs_measured(scene, mat, omega=a.omega, config=cfg)
+                val = base | {c: {k: round(v, 4) for k, v in r[c].items() if isinstance(v, float)}
+                              for c in ("Fx", "Fz")}
+            val["wall_s"] = round(time.perf_counter() - t0, 1)
+            res["runs"][key] = val
+            res["changes"] = {f"{a.medium}, E {a.youngs_mpa:g} MPa": _changes(res["runs"], a.medium, a.youngs_mpa)}
+            atomic_write_text(OUT, json.dumps(res, indent=1))
+            print(key, json.dumps(val), flush=True)
+
+
+if __name__ == "__main__":
+    main()
