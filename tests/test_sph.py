@@ -315,6 +315,19 @@ def test_low_column_collapse_keeps_its_height_and_runs_out():
     assert r["p95_speed"] < 0.005  # the deposit came to rest
 
 
+def test_static_height_bound_conserves_area_and_caps_at_the_full_height():
+    """The deposit bound of a column (no slope steeper than phi): a plateau-and-flank deposit
+    that keeps the full height exists while a <= 2 tan phi; above it the triangle of slope phi
+    with the column's area is the tallest deposit."""
+    phi = math.radians(21.0)
+    assert validation.static_height_bound(2 * math.tan(phi) * 0.99, phi) == 1.0
+    for a in (1.0, 2.0, 4.0):
+        h = validation.static_height_bound(a, phi) * a  # H_f / L_i
+        assert 0.5 * h * (h / math.tan(phi)) == pytest.approx(a)  # triangle area = H_i L_i
+    # 3 mm glass CP (21 deg) at a = 1: at most 0.88 of the height can stay (docs/sph.md)
+    assert validation.static_height_bound(1.0, phi) == pytest.approx(0.8763, abs=1e-4)
+
+
 # ------------------------------------------------------------------- scene 3: plate pushed down
 def test_plate_pushed_down_stress_grows_linearly_with_depth_near_the_measured_alpha_z():
     """Scene 3 in quick form (4 mm particles, 2 cm/s, to 4 cm): the vertical stress on a

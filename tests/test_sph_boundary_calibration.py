@@ -133,6 +133,9 @@ def test_validate_quick_scenes_compare_with_the_published_numbers(tmp_path):
     assert bed["verdict"] == "pass" and abs(bed["ours"] - 1) < 0.05
     col = by["H_f / H_i, a = 1"]
     assert col["reference"] == 1.0 and 0.3 < col["ours"] <= 1.05
+    assert "at most 0.876" in col["source"]  # the static bound at phi = 21 deg
+    ps = by["run-out (L_f - L_i)/L_i vs plane-strain continuum, a = 1"]
+    assert ps["reference"] == pytest.approx(2.28) and "Dunatunga" in ps["source"]
     plate = by["alpha_z(0, pi/2), 3 mm glass CP"]
     assert plate["reference"] == pytest.approx(0.29) and "Table S3" in plate["source"]
     # the plate test at the angle of repose: about half the measured slope (docs/sph.md)

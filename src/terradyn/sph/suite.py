@@ -199,12 +199,20 @@ def validate(*, quick=False, scenes=SCENES, media=None, dx=None, omega=1.1, prog
             hf = r["height"] / a
             if a <= 1.0:
                 checks.append(Check("column", f"H_f / H_i, a = {a:g}", hf, 1.0,
-                                    "Lube et al. 2005 (PRE 72:041301): undisturbed top for a < 1.15",
+                                    "Lube et al. 2005 (PRE 72:041301): undisturbed top for a < 1.15 "
+                                    f"(a deposit no steeper than phi can keep at most {r['height_bound']:.3g})",
                                     ">= 0.95", hf >= 0.95))
             checks.append(Check("column", f"run-out (L_f - L_i)/L_i, a = {a:g}", r["runout"],
                                 r["runout_lube"],
                                 "Lube et al. 2005 fits (quasi-2D channel with side walls)",
                                 "within 25 %", abs(r["runout"] / r["runout_lube"] - 1) <= 0.25))
+            if r["runout_plane_strain_mpm"] is not None:
+                ref = r["runout_plane_strain_mpm"]
+                checks.append(Check("column", f"run-out (L_f - L_i)/L_i vs plane-strain continuum, a = {a:g}",
+                                    r["runout"], ref,
+                                    "Dunatunga & Kamrin 2015 plane-strain MPM, 2.28 a (no side walls, as this "
+                                    "model; quoted second-hand, sph-fidelity-notes sec. 4)",
+                                    "within 25 %", abs(r["runout"] / ref - 1) <= 0.25))
         details["column"] = [{k: v for k, v in r.items() if isinstance(v, float)} for r in rows]
         if fig("columns.png"):
             plots.columns(rows, fig("columns.png"))

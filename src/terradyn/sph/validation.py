@@ -73,6 +73,24 @@ def lube2005(aspect) -> tuple[np.ndarray, np.ndarray]:
     return runout, height
 
 
+#: Run-out (L_f - L_i)/L_i per unit aspect ratio of a plane-strain frictional continuum
+#: without side walls at small a: Dunatunga & Kamrin 2015 (J. Fluid Mech. 779:483) MPM, quoted
+#: second-hand (shared/spec/sph-fidelity-notes.md section 4): the reference whose assumptions
+#: match this model's (2D, no side-wall friction), against Lube et al. 2005's 1.2 a measured
+#: in a channel 10 cm wide.
+PLANE_STRAIN_MPM_RUNOUT = 2.28
+
+
+def static_height_bound(aspect: float, friction: float) -> float:
+    """Largest final height H_f / H_i a column of aspect a = H_i / L_i can keep if no slope of
+    its deposit is steeper than the friction angle (rad). Area is conserved: a deposit that
+    keeps the full height (a plateau p plus a flank at phi) has area H_i (p + H_i / (2 tan phi))
+    = H_i L_i, which needs p >= 0, i.e. a <= 2 tan phi; beyond that the tallest deposit is the
+    triangle of slope phi, of height sqrt(2 tan(phi) H_i L_i). Returns
+    min(1, sqrt(2 tan(phi) / a))."""
+    return min(1.0, math.sqrt(2.0 * math.tan(friction) / aspect))
+
+
 def column_collapse(aspect: float, medium="3 mm glass CP", *, base=0.06, dx=4e-3,
                     duration: float | None = None, snapshots: int = 0) -> dict:
     """Collapse a 2D column of width ``base`` and height aspect x base against a wall; returns
@@ -97,7 +115,10 @@ def column_collapse(aspect: float, medium="3 mm glass CP", *, base=0.06, dx=4e-3
     top = float(z[x < 2 * dx].max()) + 0.5 * dx if (x < 2 * dx).any() else float(z.max() + 0.5 * dx)
     lr, lh = lube2005(aspect)
     return {"aspect": aspect, "base": base, "runout": (front - base) / base, "height": top / base,
-            "runout_lube": float(lr), "height_lube": float(lh), "x": x, "z": z,
+            "runout_lube": float(lr), "height_lube": float(lh),
+            "runout_plane_strain_mpm": PLANE_STRAIN_MPM_RUNOUT * aspect if aspect <= 1.0 else None,
+            "height_bound": static_height_bound(aspect, mat.friction),
+            "deposit_slope_deg": math.degrees(math.atan2(top, front)), "x": x, "z": z,
             "snapshots": res.snapshots, "max_speed": float(np.hypot(s.vx[s.sidx], s.vz[s.sidx]).max()),
             "p95_speed": float(np.quantile(np.hypot(s.vx[s.sidx], s.vz[s.sidx]), 0.95)),
             "duration": T}
