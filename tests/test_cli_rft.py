@@ -73,3 +73,23 @@ def test_study_all_quick_writes_figures_and_data(tmp_path):
         assert (tmp_path / f).exists(), f
     legs = io.read(tmp_path / "rft_legs.nc")
     assert list(legs.leg.values) == ["c", "flat", "reverse-c"]
+
+
+def test_rft_dynamic_lambda_adds_an_inertial_term_quadratic_in_speed_and_linear_in_lambda(tmp_path, capsys):
+    """--dynamic-lambda: Agarwal et al. 2021's lambda rho v_n^2 term. It is linear in lambda,
+    grows as omega^2 (v = omega r), and vanishes in the slow (quasi-static) limit."""
+    def run(omega, lam=None):
+        out = tmp_path / f"f{omega}_{lam}.nc"
+        args = ["rft", "--leg", "flat", "--n-theta", "37", "--medium", "poppy LP", "--omega", str(omega),
+                "-o", str(out)] + ([] if lam is None else ["--dynamic-lambda", str(lam)])
+        assert main(args) == 0
+        return io.read(out)
+
+    qs = run(20.0)
+    d1, d2 = run(20.0, 1.1), run(20.0, 2.2)
+    extra1, extra2 = d1.Fz.values - qs.Fz.values, d2.Fz.values - qs.Fz.values
+    assert np.abs(extra1).max() > 0.05 * np.abs(qs.Fz.values).max()  # visible at 20 rad/s
+    np.testing.assert_allclose(extra2, 2 * extra1, rtol=1e-9, atol=1e-12)
+    slow = run(2.0, 1.1).Fz.values - run(2.0).Fz.values
+    np.testing.assert_allclose(slow, extra1 / 100, rtol=1e-6, atol=1e-12)  # omega^2
+    assert '"lambda": 1.1' in d1.attrs["input"]

@@ -34,6 +34,10 @@ def rft(
     interp: Optional[Interp] = typer.Option(None, help="Interpolator for --alpha table (default: linear; slinear = linear spline)."),
     table_file: Optional[Path] = typer.Option(None, help="Your own measured grid (Table S5 CSV format) for --alpha table."),
     motion_file: Optional[Path] = O.MOTION_FILE,
+    dynamic_lambda: Optional[float] = typer.Option(
+        None, help="Add the dynamic-RFT inertial term lambda rho (v.n)^2 (Agarwal et al. 2021; rho: the "
+                   "medium's bulk density) with this lambda, in [0, 10]; 1.1 is Agarwal's value "
+                   "[default: quasi-static]."),
     out: Optional[str] = O.out(),
     plot: Optional[Path] = O.PLOT,
 ):
@@ -57,7 +61,7 @@ def rft(
         theta_end_deg=theta_end_deg, n_theta=n_theta, elements=elements, medium=medium,
         motion_file=motion_file, alpha=alpha.value, zeta=zeta,
         interp=None if interp is None else interp.value,
-        table_file=None if table_file is None else str(table_file))
+        table_file=None if table_file is None else str(table_file), dynamic_lambda=dynamic_lambda)
     io.emit(ds, out)
     if plot is not None:
         label = leg_file.stem if leg_file else leg.value

@@ -14,6 +14,9 @@ OPTIONS = (
     Option("zeta", float, None, lo=0, lo_open=True, help="Scale of the generic fit (alpha generic)."),
     Option("interp", str, None, choices=INTERPOLATORS, help="Interpolator of the table (alpha table; default linear)."),
     Option("table_file", str, None, help="Your own measured grid (Table S5 CSV format; alpha table)."),
+    Option("dynamic_lambda", float, None, lo=0, hi=10,
+           help="Dynamic-RFT lambda: adds lambda rho (v.n)^2 per area (Agarwal et al. 2021; rho the "
+                "medium's bulk density, Li 2013 Table S1). Unset: quasi-static."),
 )
 
 
@@ -38,16 +41,31 @@ def stress_model_of(medium: str, alpha: str = "fit", zeta=None, interp=None, tab
     return _model(json.dumps(key, sort_keys=True))
 
 
-def _simulate(body, motion, medium, *, alpha="fit", zeta=None, interp=None, table_file=None):
+def _dynamic(medium: str, lam):
+    """``(lambda, bulk density)`` for the dynamic term of a named medium (None: quasi-static)."""
+    if lam is None:
+        return None
+    from ..media import MEDIA
+
+    if medium not in MEDIA:
+        raise InputError("dynamic-lambda", f"needs a medium with a measured bulk density ({', '.join(MEDIA)}), "
+                                           f"got {medium!r}")
+    return float(lam), MEDIA[medium].bulk_density
+
+
+def _simulate(body, motion, medium, *, alpha="fit", zeta=None, interp=None, table_file=None,
+              dynamic_lambda=None):
     from ..rft import simulate
 
     if not isinstance(medium, str):  # a stress model object: the options do not apply
         for name, v in (("alpha", alpha if alpha != "fit" else None), ("zeta", zeta), ("interp", interp),
-                        ("table-file", table_file)):
+                        ("table-file", table_file), ("dynamic-lambda", dynamic_lambda)):
             if v is not None:
                 ignored(name, "has no effect when the medium is given as a stress model")
         return simulate(body, motion, medium, getattr(medium, "name", None))
-    return simulate(body, motion, stress_model_of(medium, alpha, zeta, interp, table_file), medium)
+    dyn = _dynamic(medium, dynamic_lambda)
+    return simulate(body, motion, stress_model_of(medium, alpha, zeta, interp, table_file), medium,
+                    dynamic=dyn)
 
 
 def _resolve(opts: dict) -> dict:
@@ -70,8 +88,14 @@ def _resolve(opts: dict) -> dict:
         for k in ("interp", "table_file"):
             if k in o:
                 raise InputError(f"model.{k}", "only applies with alpha = 'table'")
+    if "dynamic_lambda" in o:
+        out["dynamic_lambda"] = o["dynamic_lambda"]
+        try:
+            _dynamic(medium, o["dynamic_lambda"])
+        except InputError as e:
+            raise InputError("model.dynamic_lambda", str(e).split(": ", 1)[-1]) from None
     try:
-        stress_model_of(medium, **{k: v for k, v in out.items() if k != "medium"})
+        stress_model_of(medium, **{k: v for k, v in out.items() if k not in ("medium", "dynamic_lambda")})
     except InputError as e:
         raise InputError(f"model.{e.field}", str(e).split(": ", 1)[-1]) from None
     return out
