@@ -67,8 +67,6 @@ from ..rft3d import Body, Medium3D, from_trimesh, rotation_matrices
 from ..rft3d.engine import _block
 from ..rft3d.model import cap_tangential, coefficients, generic_alpha
 
-#: The 3D-RFT coefficient table (a compile-time constant of the step kernel).
-_COEF = coefficients()
 
 try:
     import mujoco
@@ -160,34 +158,91 @@ def max_generic_stress() -> float:
 # Compiled step: all terrain bodies in one call
 # ------------------------------------------------------------------------------------------
 @numba.njit(cache=True, fastmath=True, error_model="numpy")
-def _terrain_wrenches(G, P, meta, anc, S, T, xpos, xmat, xipos, cvel, subtree_com, cdof, qacc,
-                      surface, stick_dt, out):  # pragma: no cover - compiled
+def _clip_elements(G, V, Gc, lo, hi, r20, r21, r22, h0):  # pragma: no cover - compiled
+    """Elements lo..hi of G cut at the free surface into Gc[:, lo:k]; returns k. Depth of a
+    body-frame point p: h0 - (r20, r21, r22) . p. A triangle wholly out of the bed is dropped,
+    one wholly in is kept as it is, one that straddles the surface is replaced by its part in
+    the bed: area and centroid of the sub-triangle (one vertex in) or of the triangle less
+    its corner out of the bed (two in) - one element whose centroid depth times area is the
+    exact depth integral over the part in the bed (depth is linear on a flat element)."""
+    k = lo
+    for i in range(lo, hi):
+        d0 = h0 - (r20 * V[0, i] + r21 * V[1, i] + r22 * V[2, i])
+        d1 = h0 - (r20 * V[3, i] + r21 * V[4, i] + r22 * V[5, i])
+        d2 = h0 - (r20 * V[6, i] + r21 * V[7, i] + r22 * V[8, i])
+        n_in = (d0 > 0.0) + (d1 > 0.0) + (d2 > 0.0)
+        if n_in == 0:
+            continue
+        for c in range(7):
+            Gc[c, k] = G[c, i]
+        if n_in < 3:
+            # a: the lone vertex (in the bed if n_in == 1, out of it if n_in == 2)
+            lone_in = n_in == 1
+            if (d0 > 0.0) == lone_in:
+                a, b, c_, da, db, dc = 0, 1, 2, d0, d1, d2
+            elif (d1 > 0.0) == lone_in:
+                a, b, c_, da, db, dc = 1, 2, 0, d1, d2, d0
+            else:
+                a, b, c_, da, db, dc = 2, 0, 1, d2, d0, d1
+            tb = da / (da - db)  # where the edges a-b, a-c cross the surface
+            tc = da / (da - dc)
+            frac = tb * tc  # area of the corner triangle at a / the element's area
+            area = G[6, i]
+            for x in range(3):
+                pa = V[3 * a + x, i]
+                pb = pa + tb * (V[3 * b + x, i] - pa)
+                pc = pa + tc * (V[3 * c_ + x, i] - pa)
+                corner = (pa + pb + pc) / 3.0
+                if lone_in:
+                    Gc[x, k] = corner
+                else:  # the triangle less the corner out of the bed
+                    whole = (V[x, i] + V[3 + x, i] + V[6 + x, i]) / 3.0
+                    Gc[x, k] = (whole - frac * corner) / (1.0 - frac)
+            Gc[6, k] = area * frac if lone_in else area * (1.0 - frac)
+        k += 1
+    return k
+
+
+@numba.njit(cache=True, fastmath=True, error_model="numpy")
+def _terrain_wrenches(G, C, P, meta, anc, S, box, T, o, V, Gc, wk, xpos, xmat, xipos, cvel, subtree_com, cdof,
+                      qacc, surface, stick_dt, out):  # pragma: no cover - compiled
     """RFT wrench (about the CoM, world frame) of every terrain body into out (nb, 6).
 
     G (7, n) elements of all bodies (rft3d's struct-of-arrays layout: cx, cy, cz, nx, ny, nz,
-    area), body b's in [meta[b, 2], meta[b, 3]); P (nb, 7) rft3d's kernel parameters per body
-    (xi_n, mu_surf, lambda rho, bounding sphere about the body origin); meta[b, 0] body
-    id, meta[b, 1] its root body, meta[b, 4:6] its range in ``anc`` (the dofs that move it).
-    S (nb, 76) static floats per body: [0] the largest element distance from the body origin
-    (bodies wholly above the surface are skipped), [1:4] unused (the law's parameters are in P), [4:40] the
-    6 x 6 mobility J M^-1 J^T of the CoM twist (v, omega) in the body frame, [40:76] its
-    (pseudo-)inverse, the effective inertia M_b. T (nb, 22) pose
-    rows (scratch).
+    area), body b's in [meta[b, 2], meta[b, 3]); C the coefficient table and P (nb, 7) rft3d's
+    kernel parameters per body (xi_n, mu_surf, lambda rho, bounding sphere about the body
+    origin), T (nb, 22) pose rows and o (nb, 6) scratch, all four in the element loop's float
+    type (float64 or float32: G's dtype); the poses are written relative to the body's CoM, so
+    float32 loses nothing to large world coordinates. meta[b, 0] body id, meta[b, 1] its root
+    body, meta[b, 4:6] its range in ``anc`` (the dofs that move it). box (nb, 6): the box
+    around the body's element centres in the body frame (centre, half sizes): a body whose
+    lowest possible element centre is above the surface is skipped (zero wrench; exact, the
+    elements there feel nothing). V (9, n) float64 the elements' vertices (x0, y0, z0, x1, ...,
+    body frame) and Gc (7, n) scratch in G's type: with V non-empty (the clipped quadrature)
+    each element is cut at the free surface first - out of the bed: dropped; straddling it:
+    replaced by its part in the bed (area, centroid), so the depth integral of a flat element is
+    exact - and the kept elements, packed into Gc, go to the element law. wk (5, 6) float64
+    scratch. S (nb, 76) static floats per body: [0] the largest
+    element distance from the body origin, [4:40] the 6 x 6 mobility J M^-1 J^T of the CoM
+    twist (v, omega) in the body frame, [40:76] its (pseudo-)inverse, the effective inertia M_b.
     cdof (nv, 6), qacc (nv,): with stick_dt > 0 the body twists are the predicted ones,
     cvel + stick_dt * sum(cdof qacc) (qacc = qacc_smooth), and the no-reversal cap applies:
     where the wrench's impulse would more than stop that twist along the wrench (in the
     kinetic-energy metric), the body is held: the wrench that stops its whole twist,
     -M_b xi / dt, is applied if it is no stronger than the RFT wrench (in the same metric),
     else the RFT wrench scaled down to the one that just stops the twist along it."""
-    C = _COEF
     for b in range(meta.shape[0]):
         bid = meta[b, 0]
         for k in range(6):
             out[b, k] = 0.0
-        if xpos[bid, 2] - S[b, 0] >= surface:
+        low = xpos[bid, 2]  # lowest point of the box of element centres
+        for k in range(3):
+            r2k = xmat[bid, 6 + k]
+            low += r2k * box[b, k] - abs(r2k) * box[b, 3 + k]
+        if low - 1e-12 >= surface:
             continue
         root = meta[b, 1]
-        cv = np.empty(6)
+        cv = wk[0]
         for k in range(6):
             cv[k] = cvel[bid, k]
         if stick_dt > 0.0:
@@ -199,24 +254,31 @@ def _terrain_wrenches(G, P, meta, anc, S, T, xpos, xmat, xipos, cvel, subtree_co
         dx = xpos[bid, 0] - subtree_com[root, 0]
         dy = xpos[bid, 1] - subtree_com[root, 1]
         dz = xpos[bid, 2] - subtree_com[root, 2]
-        for k in range(3):
-            T[b, k] = xpos[bid, k]
+        for k in range(3):  # body origin relative to the CoM (the torque point: 0)
+            T[b, k] = xpos[bid, k] - xipos[bid, k]
             T[b, 15 + k] = cv[k]
-            T[b, 18 + k] = xipos[bid, k]
+            T[b, 18 + k] = 0.0
         for k in range(9):
             T[b, 3 + k] = xmat[bid, k]
         T[b, 12] = cv[3] + wy * dz - wz * dy
         T[b, 13] = cv[4] + wz * dx - wx * dz
         T[b, 14] = cv[5] + wx * dy - wy * dx
-        T[b, 21] = surface
+        T[b, 21] = surface - xipos[bid, 2]
         # rft3d's compiled element law (the same kernel as rft3d.wrench)
-        _block(G, T, b, meta[b, 2], meta[b, 3], C, P[b], out, b)
+        if V.shape[1] > 0:
+            hi = _clip_elements(G, V, Gc, meta[b, 2], meta[b, 3], xmat[bid, 6], xmat[bid, 7], xmat[bid, 8],
+                                surface - xpos[bid, 2])
+            _block(Gc, T, b, meta[b, 2], hi, C, P[b], o, b)
+        else:
+            _block(G, T, b, meta[b, 2], meta[b, 3], C, P[b], o, b)
+        for k in range(6):
+            out[b, k] = o[b, k]
         Fx, Fy, Fz, Tx, Ty, Tz = out[b, 0], out[b, 1], out[b, 2], out[b, 3], out[b, 4], out[b, 5]
         if stick_dt > 0.0:  # no-reversal cap: the terrain impulse can at most stop the body
             ex = xipos[bid, 0] - subtree_com[root, 0]
             ey = xipos[bid, 1] - subtree_com[root, 1]
             ez = xipos[bid, 2] - subtree_com[root, 2]
-            xi = np.empty(6)  # predicted twist at the CoM: v_com, omega (world)
+            xi = wk[1]  # predicted twist at the CoM: v_com, omega (world)
             xi[0] = cv[3] + wy * ez - wz * ey
             xi[1] = cv[4] + wz * ex - wx * ez
             xi[2] = cv[5] + wx * ey - wy * ex
@@ -225,7 +287,7 @@ def _terrain_wrenches(G, P, meta, anc, S, T, xpos, xmat, xipos, cvel, subtree_co
             for k in range(6):
                 power += xi[k] * out[b, k]
             if power < 0.0:
-                wb = np.empty(6)  # the wrench in the body frame (R^T F, R^T tau)
+                wb = wk[2]  # the wrench in the body frame (R^T F, R^T tau)
                 for k in range(3):
                     wb[k] = xmat[bid, k] * Fx + xmat[bid, 3 + k] * Fy + xmat[bid, 6 + k] * Fz
                     wb[3 + k] = xmat[bid, k] * Tx + xmat[bid, 3 + k] * Ty + xmat[bid, 6 + k] * Tz
@@ -238,11 +300,13 @@ def _terrain_wrenches(G, P, meta, anc, S, T, xpos, xmat, xipos, cvel, subtree_co
                     if sc < 1.0:
                         # the wrench that stops the whole predicted twist: -M_b xi / dt (body
                         # frame); held if it is no stronger than the RFT wrench (same metric)
-                        xb = np.empty(6)
+                        xb = wk[3]
                         for k in range(3):
                             xb[k] = xmat[bid, k] * xi[0] + xmat[bid, 3 + k] * xi[1] + xmat[bid, 6 + k] * xi[2]
                             xb[3 + k] = xmat[bid, k] * xi[3] + xmat[bid, 3 + k] * xi[4] + xmat[bid, 6 + k] * xi[5]
-                        ws = np.zeros(6)
+                        ws = wk[4]
+                        for k in range(6):
+                            ws[k] = 0.0
                         kin = 0.0
                         for i in range(6):
                             for j in range(6):
@@ -257,21 +321,117 @@ def _terrain_wrenches(G, P, meta, anc, S, T, xpos, xmat, xipos, cvel, subtree_co
                                 out[b, k] *= sc
 
 
-_ENTRY: list = []
+@numba.njit(cache=True, fastmath=True, error_model="numpy")
+def _run_steps(step1, step2, actuation, acceleration, m, d, nsteps, substeps, ctrl, schedule, xfrc,
+               G, C, P, meta, anc, S, box, T, o, V, Gc, wk, xpos, xmat, xipos, cvel, subtree_com, cdof, qacc,
+               surface, stick_dt, out, use_terrain, clock, ts, times):  # pragma: no cover - compiled
+    """``nsteps`` model steps of ``substeps`` rounds of mj_step1, terrain, mj_step2 each, in
+    one compiled call: MuJoCo's C functions (``step1`` ...: ctypes functions, ``m``, ``d``
+    the MjModel / MjData addresses) and the terrain kernel on MjData's own arrays. ctrl[:] =
+    schedule[i] before model step i if schedule has rows, else ctrl is held. With
+    use_terrain False only MuJoCo runs (the benchmark's reference). With times (nsteps, 2)
+    the seconds of each step in MuJoCo and in the terrain are added into it (``clock``: libc
+    clock_gettime, CLOCK_MONOTONIC; ts a (2,) int64 timespec)."""
+    nb = meta.shape[0]
+    timed = times.shape[0] > 0
+    t0 = t1 = t2 = 0.0
+    for i in range(nsteps):
+        if schedule.shape[0] > 0:
+            for k in range(ctrl.shape[0]):
+                ctrl[k] = schedule[i, k]
+        for _ in range(substeps):
+            if timed:
+                clock(1, ts.ctypes.data)
+                t0 = ts[0] + 1e-9 * ts[1]
+            step1(m, d)
+            if timed:
+                clock(1, ts.ctypes.data)
+                t1 = ts[0] + 1e-9 * ts[1]
+            if use_terrain:
+                if stick_dt > 0.0:
+                    actuation(m, d)
+                    acceleration(m, d)
+                _terrain_wrenches(G, C, P, meta, anc, S, box, T, o, V, Gc, wk, xpos, xmat, xipos, cvel,
+                                  subtree_com, cdof, qacc, surface, stick_dt, out)
+                for b in range(nb):
+                    for k in range(6):
+                        xfrc[meta[b, 0], k] += out[b, k]
+            if timed:
+                clock(1, ts.ctypes.data)
+                t2 = ts[0] + 1e-9 * ts[1]
+            step2(m, d)
+            if use_terrain:
+                for b in range(nb):
+                    for k in range(6):
+                        xfrc[meta[b, 0], k] -= out[b, k]
+            if timed:
+                clock(1, ts.ctypes.data)
+                times[i, 0] += (t1 - t0) + (ts[0] + 1e-9 * ts[1] - t2)
+                times[i, 1] += t2 - t1
 
 
-def _kernel():
-    """The compiled step kernel's entry point (skips Numba's per-call type dispatch, which
-    costs more than the kernel's own work for a small robot), compiled on first use."""
-    if not _ENTRY:
-        if not _terrain_wrenches.signatures:
-            f, i = np.zeros((1, 6)), np.zeros((1, 6), np.int64)
-            _terrain_wrenches(np.zeros((7, 1)), np.zeros((1, 7)), i, np.zeros(1, np.int64), np.zeros((1, 76)),
-                              np.zeros((1, 22)), np.ones((1, 3)), np.zeros((1, 9)), np.zeros((1, 3)),
-                              f, np.zeros((1, 3)), f, np.zeros(1), 0.0, 0.0, f)
-        sig = _terrain_wrenches.signatures[0]
-        _ENTRY.append(getattr(_terrain_wrenches.overloads[sig], "entry_point", _terrain_wrenches))
-    return _ENTRY[0]
+_ENTRY: dict = {}
+
+
+def _kernel(dtype=np.float64):
+    """The compiled step kernel's entry point for element data of ``dtype`` (skips Numba's
+    per-call type dispatch, which costs more than the kernel's own work for a small robot),
+    compiled on first use."""
+    dt = np.dtype(dtype)
+    if dt not in _ENTRY:
+        f, i = np.zeros((1, 6)), np.zeros((1, 6), np.int64)
+        e = np.zeros((1, 6), dt)
+        args = (np.zeros((7, 1), dt), np.zeros((3, 20), dt), np.zeros((1, 7), dt), i, np.zeros(1, np.int64),
+                np.zeros((1, 76)), np.zeros((1, 6)), np.zeros((1, 22), dt), e, np.zeros((9, 0)),
+                np.zeros((7, 1), dt), np.zeros((5, 6)), np.ones((1, 3)), np.zeros((1, 9)), np.zeros((1, 3)), f, np.zeros((1, 3)),
+                f, np.zeros(1), 0.0, 0.0, f)
+        _terrain_wrenches(*args)
+        sig = tuple(numba.typeof(a) for a in args)
+        ov = _terrain_wrenches.overloads.get(sig)
+        _ENTRY[dt] = getattr(ov, "entry_point", _terrain_wrenches) if ov is not None else _terrain_wrenches
+    return _ENTRY[dt]
+
+
+# ------------------------------------------------------------------------------------------
+# MuJoCo's C library, for the compiled stepping loop
+# ------------------------------------------------------------------------------------------
+_LIB: dict = {}
+
+
+def mujoco_c_functions():
+    """(functions, reason): ctypes handles of MuJoCo's ``mj_step1``, ``mj_step2``,
+    ``mj_fwdActuation``, ``mj_fwdAcceleration`` and libc's ``clock_gettime`` from the shared
+    library the ``mujoco`` package ships next to its ``__init__.py``
+    (``libmujoco.so*`` / ``mujoco*.dll`` / ``libmujoco*.dylib``), or (None, why not)."""
+    if "f" not in _LIB:
+        import ctypes
+        import ctypes.util
+        import glob
+
+        here = os.path.dirname(mujoco.__file__)
+        found = sorted(glob.glob(os.path.join(here, "libmujoco.so*")) + glob.glob(os.path.join(here, "libmujoco*.dylib"))
+                       + glob.glob(os.path.join(here, "mujoco*.dll")))
+        funcs, why = None, None
+        if not found:
+            why = f"MuJoCo's shared library was not found next to the mujoco package ({here})"
+        else:
+            try:
+                lib = ctypes.CDLL(found[-1])
+                libc = ctypes.CDLL(ctypes.util.find_library("c") or None)
+                funcs = {}
+                for name in ("mj_step1", "mj_step2", "mj_fwdActuation", "mj_fwdAcceleration"):
+                    fn = getattr(lib, name)
+                    fn.argtypes, fn.restype = [ctypes.c_void_p, ctypes.c_void_p], None
+                    funcs[name] = fn
+                clk = libc.clock_gettime
+                clk.argtypes, clk.restype = [ctypes.c_int, ctypes.c_void_p], ctypes.c_int
+                funcs["clock_gettime"] = clk
+                if not hasattr(mujoco.MjModel, "_address"):
+                    raise AttributeError("mujoco.MjModel has no _address (raw pointer) in this version")
+            except (OSError, AttributeError) as e:
+                funcs, why = None, f"MuJoCo's shared library {found[-1]} could not be used: {e}"
+        _LIB["f"], _LIB["why"] = funcs, why
+    return _LIB["f"], _LIB["why"]
 
 
 # ------------------------------------------------------------------------------------------
@@ -306,6 +466,8 @@ class GranularTerrain:
     max_edge: float | None = None
     stick: bool = True
     sections: int = 16
+    precision: str = "float64"
+    quadrature: str = "centroid"
     surfaces: dict = field(default_factory=dict, init=False)
 
     def __post_init__(self):
@@ -316,6 +478,11 @@ class GranularTerrain:
             raise InputError("medium", "must be a terradyn.rft3d.Medium3D (e.g. rft3d.medium3d('poppy LP'))")
         self.surface = finite("surface", self.surface, "m")
         self.stick = bool(self.stick)
+        if self.precision not in ("float64", "float32"):
+            raise InputError("precision", f"must be 'float64' or 'float32', got {self.precision!r}")
+        dt = np.dtype(self.precision)
+        if self.quadrature not in ("centroid", "clip"):
+            raise InputError("quadrature", f"must be 'centroid' or 'clip', got {self.quadrature!r}")
         if self.dynamic_lambda is not None:
             positive("dynamic_lambda", self.dynamic_lambda)
         if self.max_edge is not None:
@@ -366,8 +533,25 @@ class GranularTerrain:
             meta.append((bid, int(m.body_rootid[bid]), lo, lo + p.shape[1]))
             rad.append(float(np.linalg.norm(p[:3], axis=0).max()))
             lo += p.shape[1]
-        self._GT = np.ascontiguousarray(np.concatenate(G, axis=1))
-        self._G = self._GT.T  # (n, 7) rows, for per-element reads
+        G64 = np.ascontiguousarray(np.concatenate(G, axis=1))
+        self._G = G64.T  # (n, 7) rows, for per-element reads (float64)
+        self._GT = np.ascontiguousarray(G64, dtype=dt)  # the kernel's copy, in its precision
+        self._C = np.ascontiguousarray(coefficients(), dtype=dt)
+        clip = self.quadrature == "clip"
+        if clip:  # the elements' vertices (9, n), body frame
+            self._V = np.ascontiguousarray(np.concatenate(
+                [s.vertices[s.faces].reshape(-1, 9).T for s in self.surfaces.values()], axis=1))
+        else:
+            self._V = np.zeros((9, 0))
+        self._Gc = np.zeros_like(self._GT)
+        self._wk = np.zeros((5, 6))
+        # box of the points that decide contact (element centres; vertices when clipped), body frame
+        pts = [self._V[3 * c:3 * c + 3] for c in range(3)] if clip else [G64[:3]]
+        self._box = np.zeros((len(meta), 6))
+        for k, (_, _, a, b) in enumerate(meta):
+            lo_ = np.min([p[:, a:b].min(axis=1) for p in pts], axis=0)
+            hi_ = np.max([p[:, a:b].max(axis=1) for p in pts], axis=0)
+            self._box[k, :3], self._box[k, 3:] = (lo_ + hi_) / 2, (hi_ - lo_) / 2
         anc = []
         for k, bid in enumerate(self.body_ids):  # the dofs that move each body (its ancestors')
             start = len(anc)
@@ -381,13 +565,14 @@ class GranularTerrain:
         nb = len(self.body_ids)
         self._S = np.zeros((nb, 76))
         self._S[:, 0] = rad
-        self._P = np.zeros((nb, 7))  # rft3d's kernel parameters; sphere about the body origin
+        self._P = np.zeros((nb, 7), dt)  # rft3d's kernel parameters; sphere about the body origin
         self._P[:, 0:3] = (self.medium.xi_n, self.medium.mu_surf,
                            (self.dynamic_lambda or 0.0) * self.medium.bulk_density)
-        self._P[:, 6] = rad
+        self._P[:, 6] = rad if not clip else 1e30  # clipped: element centres may leave the sphere (the box culls)
         self._mobility_set = False
         self._bound = None
-        self._T = np.zeros((nb, 22))
+        self._T = np.zeros((nb, 22), dt)
+        self._o = np.zeros((nb, 6), dt)
         self._out = np.zeros((nb, 6))
         self._disable_floor_contact(geom_names)
 
@@ -422,20 +607,27 @@ class GranularTerrain:
         stick_dt = 0.0
         if self.stick:
             if not self._mobility_set:
-                mob = self.mobility(data)
-                self._S[:, 4:40] = mob.reshape(-1, 36)
-                self._S[:, 40:76] = np.linalg.pinv(mob, hermitian=True).reshape(-1, 36)
-                self._mobility_set = True
+                self._set_mobility(data)
             stick_dt = m.opt.timestep
             mujoco.mj_fwdActuation(m, data)
             mujoco.mj_fwdAcceleration(m, data)
+        self._bind(data)
+        _kernel(self._GT.dtype)(*self._args, self.surface, stick_dt, self._out)
+        return self._out
+
+    def _bind(self, data) -> None:
         if self._bound is not data:  # MjData arrays never move: bind their views once
-            self._args = (self._GT, self._P, self._meta, self._anc, self._S, self._T, data.xpos, data.xmat,
-                          data.xipos, data.cvel, data.subtree_com, data.cdof, data.qacc_smooth)
+            self._args = (self._GT, self._C, self._P, self._meta, self._anc, self._S, self._box, self._T,
+                          self._o, self._V, self._Gc, self._wk, data.xpos, data.xmat, data.xipos, data.cvel, data.subtree_com,
+                          data.cdof, data.qacc_smooth)
             self._xfrc = data.xfrc_applied
             self._bound = data
-        _kernel()(*self._args, self.surface, stick_dt, self._out)
-        return self._out
+
+    def _set_mobility(self, data) -> None:
+        mob = self.mobility(data)
+        self._S[:, 4:40] = mob.reshape(-1, 36)
+        self._S[:, 40:76] = np.linalg.pinv(mob, hermitian=True).reshape(-1, 36)
+        self._mobility_set = True
 
     def apply(self, data) -> np.ndarray:
         """Add the terrain wrenches to ``data.xfrc_applied``; returns them ((nb, 6), a view
@@ -469,6 +661,89 @@ class GranularTerrain:
                 self.remove(data)
         finally:
             m.opt.timestep = dt
+
+    def run(self, data, nsteps: int, ctrl=None, substeps: int = 1, compiled: bool = True,
+            terrain: bool = True, timing: bool = False) -> dict:
+        """``nsteps`` model steps with the terrain in ONE compiled call (MuJoCo's C
+        ``mj_step1`` / ``mj_step2`` and the terrain kernel in a Numba loop on MjData's own
+        arrays; no Python per step). Same physics as calling :meth:`step` ``nsteps`` times.
+
+        Control-rate contract: the controller runs between calls, physics inside them.
+        ``ctrl=None`` holds ``data.ctrl`` constant for the ``nsteps`` steps (a controller at
+        1 / (nsteps timestep)); an array (nsteps, nu) sets ``data.ctrl`` to row i before step
+        i (a precomputed schedule, e.g. a gait's targets: then the trajectory is the one of a
+        per-step controller). The user's ``xfrc_applied`` / ``qfrc_applied`` are held too.
+
+        ``compiled=False``, or MuJoCo's C library not found (:func:`mujoco_c_functions`;
+        a warning says why, once), runs the same steps through the per-step Python path
+        (:meth:`step`). ``terrain=False`` runs MuJoCo alone (the benchmark's reference);
+        ``timing=True`` times each step's MuJoCo and terrain parts (clock_gettime in the
+        loop). Returns {"compiled": bool, "step_times_s": (steps, 2) seconds in MuJoCo and in
+        the terrain per compiled step (timing only; the first step is not in it when the rest
+        rule's first step ran in Python)}."""
+        m = self.model
+        nsteps = int(nsteps)
+        if nsteps < 0:
+            raise InputError("nsteps", f"must be >= 0, got {nsteps}")
+        substeps = int(substeps)
+        if substeps < 1:
+            raise InputError("substeps", f"must be >= 1, got {substeps}")
+        sched = np.zeros((0, m.nu))
+        if ctrl is not None:
+            sched = np.ascontiguousarray(ctrl, dtype=float)
+            if sched.shape != (nsteps, m.nu):
+                raise InputError("ctrl", f"must have shape (nsteps, nu) = ({nsteps}, {m.nu}), got {sched.shape}")
+            if not np.isfinite(sched).all():
+                raise InputError("ctrl", "must be finite")
+        funcs = None
+        if compiled:
+            funcs, why = mujoco_c_functions()
+            if funcs is None and not _WARNED:
+                import warnings
+
+                warnings.warn(f"GranularTerrain.run: {why}; running the per-step Python path instead",
+                              RuntimeWarning, stacklevel=2)
+                _WARNED.append(True)
+        res = {"compiled": funcs is not None}
+        if nsteps == 0:
+            return res
+        first = 0
+        if terrain and self.stick and not self._mobility_set:  # the rest rule's M_b: first step in Python
+            if len(sched):
+                data.ctrl[:] = sched[0]
+            self.step(data, substeps)
+            first = 1
+        if funcs is None:
+            import time
+
+            times = np.full((nsteps - first, 2), np.nan)
+            for i in range(first, nsteps):
+                if len(sched):
+                    data.ctrl[:] = sched[i]
+                tic = time.perf_counter()
+                if terrain:
+                    self.step(data, substeps)
+                else:
+                    _plain_step(m, data, substeps)
+                times[i - first, 0] = time.perf_counter() - tic
+            if timing:
+                res["step_times_s"] = times  # whole steps (the split is not timed here)
+            return res
+        self._bind(data)
+        times = np.zeros((nsteps - first if timing else 0, 2))
+        dt = m.opt.timestep
+        m.opt.timestep = dt / substeps
+        try:
+            _run_steps(funcs["mj_step1"], funcs["mj_step2"], funcs["mj_fwdActuation"], funcs["mj_fwdAcceleration"],
+                       m._address, data._address, nsteps - first, substeps, data.ctrl,
+                       sched[first:] if len(sched) else sched, self._xfrc, *self._args, self.surface,
+                       m.opt.timestep if self.stick else 0.0, self._out, bool(terrain),
+                       funcs["clock_gettime"], np.zeros(2, np.int64), times)
+        finally:
+            m.opt.timestep = dt
+        if timing:
+            res["step_times_s"] = times
+        return res
 
     # ---------------------------------------------------------------- stiffness rule
     def stiffness(self) -> np.ndarray:
@@ -528,8 +803,22 @@ class GranularTerrain:
         return {"bodies": [self.model.body(int(b)).name for b in self.body_ids],
                 "elements": self.n_elements, "medium": self.medium.describe(),
                 "surface_m": self.surface, "dynamic_lambda": self.dynamic_lambda,
-                "stick": self.stick,
+                "stick": self.stick, "precision": self.precision, "quadrature": self.quadrature,
                 "floor_geoms": [self.model.geom(int(g)).name for g in self.floor_ids]}
+
+
+_WARNED: list = []
+
+
+def _plain_step(m, data, substeps: int) -> None:
+    dt = m.opt.timestep
+    m.opt.timestep = dt / substeps
+    try:
+        for _ in range(substeps):
+            mujoco.mj_step1(m, data)
+            mujoco.mj_step2(m, data)
+    finally:
+        m.opt.timestep = dt
 
 
 def energy(model, data) -> float:
@@ -541,4 +830,4 @@ def energy(model, data) -> float:
     return float(data.energy.sum())
 
 
-__all__ = ["GranularTerrain", "body_surface", "energy", "max_generic_stress", "GEOM_TYPES"]
+__all__ = ["GranularTerrain", "body_surface", "energy", "max_generic_stress", "mujoco_c_functions", "GEOM_TYPES"]
