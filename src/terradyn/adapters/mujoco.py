@@ -158,53 +158,7 @@ def max_generic_stress() -> float:
 # Compiled step: all terrain bodies in one call
 # ------------------------------------------------------------------------------------------
 @numba.njit(cache=True, fastmath=True, error_model="numpy")
-def _clip_elements(G, V, Gc, lo, hi, r20, r21, r22, h0):  # pragma: no cover - compiled
-    """Elements lo..hi of G cut at the free surface into Gc[:, lo:k]; returns k. Depth of a
-    body-frame point p: h0 - (r20, r21, r22) . p. A triangle wholly out of the bed is dropped,
-    one wholly in is kept as it is, one that straddles the surface is replaced by its part in
-    the bed: area and centroid of the sub-triangle (one vertex in) or of the triangle less
-    its corner out of the bed (two in) - one element whose centroid depth times area is the
-    exact depth integral over the part in the bed (depth is linear on a flat element)."""
-    k = lo
-    for i in range(lo, hi):
-        d0 = h0 - (r20 * V[0, i] + r21 * V[1, i] + r22 * V[2, i])
-        d1 = h0 - (r20 * V[3, i] + r21 * V[4, i] + r22 * V[5, i])
-        d2 = h0 - (r20 * V[6, i] + r21 * V[7, i] + r22 * V[8, i])
-        n_in = (d0 > 0.0) + (d1 > 0.0) + (d2 > 0.0)
-        if n_in == 0:
-            continue
-        for c in range(7):
-            Gc[c, k] = G[c, i]
-        if n_in < 3:
-            # a: the lone vertex (in the bed if n_in == 1, out of it if n_in == 2)
-            lone_in = n_in == 1
-            if (d0 > 0.0) == lone_in:
-                a, b, c_, da, db, dc = 0, 1, 2, d0, d1, d2
-            elif (d1 > 0.0) == lone_in:
-                a, b, c_, da, db, dc = 1, 2, 0, d1, d2, d0
-            else:
-                a, b, c_, da, db, dc = 2, 0, 1, d2, d0, d1
-            tb = da / (da - db)  # where the edges a-b, a-c cross the surface
-            tc = da / (da - dc)
-            frac = tb * tc  # area of the corner triangle at a / the element's area
-            area = G[6, i]
-            for x in range(3):
-                pa = V[3 * a + x, i]
-                pb = pa + tb * (V[3 * b + x, i] - pa)
-                pc = pa + tc * (V[3 * c_ + x, i] - pa)
-                corner = (pa + pb + pc) / 3.0
-                if lone_in:
-                    Gc[x, k] = corner
-                else:  # the triangle less the corner out of the bed
-                    whole = (V[x, i] + V[3 + x, i] + V[6 + x, i]) / 3.0
-                    Gc[x, k] = (whole - frac * corner) / (1.0 - frac)
-            Gc[6, k] = area * frac if lone_in else area * (1.0 - frac)
-        k += 1
-    return k
-
-
-@numba.njit(cache=True, fastmath=True, error_model="numpy")
-def _terrain_wrenches(G, C, P, meta, anc, S, box, T, o, V, Gc, wk, xpos, xmat, xipos, cvel, subtree_com, cdof,
+def _terrain_wrenches(G, C, P, meta, anc, S, box, T, o, cl, wk, xpos, xmat, xipos, cvel, subtree_com, cdof,
                       qacc, surface, stick_dt, out):  # pragma: no cover - compiled
     """RFT wrench (about the CoM, world frame) of every terrain body into out (nb, 6).
 
@@ -217,12 +171,10 @@ def _terrain_wrenches(G, C, P, meta, anc, S, box, T, o, V, Gc, wk, xpos, xmat, x
     body, meta[b, 4:6] its range in ``anc`` (the dofs that move it). box (nb, 6): the box
     around the body's element centres in the body frame (centre, half sizes): a body whose
     lowest possible element centre is above the surface is skipped (zero wrench; exact, the
-    elements there feel nothing). V (9, n) float64 the elements' vertices (x0, y0, z0, x1, ...,
-    body frame) and Gc (7, n) scratch in G's type: with V non-empty (the clipped quadrature)
-    each element is cut at the free surface first - out of the bed: dropped; straddling it:
-    replaced by its part in the bed (area, centroid), so the depth integral of a flat element is
-    exact - and the kept elements, packed into Gc, go to the element law. wk (5, 6) float64
-    scratch. S (nb, 76) static floats per body: [0] the largest
+    elements there feel nothing). The same test per cluster: cl (ncl, 8) float64 rows [first
+    element, end, box centre (3), half sizes (3)] of spatially compact runs of a body's elements
+    (body b's clusters: meta[b, 6]..meta[b, 7]); the element law runs on the runs of clusters
+    that may touch the bed only. wk (5, 6) float64 scratch. S (nb, 76) static floats per body: [0] the largest
     element distance from the body origin, [4:40] the 6 x 6 mobility J M^-1 J^T of the CoM
     twist (v, omega) in the body frame, [40:76] its (pseudo-)inverse, the effective inertia M_b.
     cdof (nv, 6), qacc (nv,): with stick_dt > 0 the body twists are the predicted ones,
@@ -264,15 +216,27 @@ def _terrain_wrenches(G, C, P, meta, anc, S, box, T, o, V, Gc, wk, xpos, xmat, x
         T[b, 13] = cv[4] + wz * dx - wx * dz
         T[b, 14] = cv[5] + wx * dy - wy * dx
         T[b, 21] = surface - xipos[bid, 2]
-        # rft3d's compiled element law (the same kernel as rft3d.wrench)
-        if V.shape[1] > 0:
-            hi = _clip_elements(G, V, Gc, meta[b, 2], meta[b, 3], xmat[bid, 6], xmat[bid, 7], xmat[bid, 8],
-                                surface - xpos[bid, 2])
-            _block(Gc, T, b, meta[b, 2], hi, C, P[b], o, b)
-        else:
-            _block(G, T, b, meta[b, 2], meta[b, 3], C, P[b], o, b)
-        for k in range(6):
-            out[b, k] = o[b, k]
+        # rft3d's compiled element law (the same kernel as rft3d.wrench) on the runs of
+        # clusters whose box reaches below the surface
+        r20, r21, r22 = xmat[bid, 6], xmat[bid, 7], xmat[bid, 8]
+        a20, a21, a22 = abs(r20), abs(r21), abs(r22)
+        start = -1
+        end = -1
+        for c in range(meta[b, 6], meta[b, 7] + 1):
+            touch = False
+            if c < meta[b, 7]:
+                lowc = (xpos[bid, 2] + r20 * cl[c, 2] + r21 * cl[c, 3] + r22 * cl[c, 4]
+                        - a20 * cl[c, 5] - a21 * cl[c, 6] - a22 * cl[c, 7])
+                touch = lowc - 1e-12 < surface
+            if touch:
+                if start < 0:
+                    start = int(cl[c, 0])
+                end = int(cl[c, 1])
+            elif start >= 0:  # flush the run of touching clusters
+                _block(G, T, b, start, end, C, P[b], o, b)
+                for k in range(6):
+                    out[b, k] += o[b, k]
+                start = -1
         Fx, Fy, Fz, Tx, Ty, Tz = out[b, 0], out[b, 1], out[b, 2], out[b, 3], out[b, 4], out[b, 5]
         if stick_dt > 0.0:  # no-reversal cap: the terrain impulse can at most stop the body
             ex = xipos[bid, 0] - subtree_com[root, 0]
@@ -323,7 +287,7 @@ def _terrain_wrenches(G, C, P, meta, anc, S, box, T, o, V, Gc, wk, xpos, xmat, x
 
 @numba.njit(cache=True, fastmath=True, error_model="numpy")
 def _run_steps(step1, step2, actuation, acceleration, m, d, nsteps, substeps, ctrl, schedule, xfrc,
-               G, C, P, meta, anc, S, box, T, o, V, Gc, wk, xpos, xmat, xipos, cvel, subtree_com, cdof, qacc,
+               G, C, P, meta, anc, S, box, T, o, cl, wk, xpos, xmat, xipos, cvel, subtree_com, cdof, qacc,
                surface, stick_dt, out, use_terrain, clock, ts, times):  # pragma: no cover - compiled
     """``nsteps`` model steps of ``substeps`` rounds of mj_step1, terrain, mj_step2 each, in
     one compiled call: MuJoCo's C functions (``step1`` ...: ctypes functions, ``m``, ``d``
@@ -351,7 +315,7 @@ def _run_steps(step1, step2, actuation, acceleration, m, d, nsteps, substeps, ct
                 if stick_dt > 0.0:
                     actuation(m, d)
                     acceleration(m, d)
-                _terrain_wrenches(G, C, P, meta, anc, S, box, T, o, V, Gc, wk, xpos, xmat, xipos, cvel,
+                _terrain_wrenches(G, C, P, meta, anc, S, box, T, o, cl, wk, xpos, xmat, xipos, cvel,
                                   subtree_com, cdof, qacc, surface, stick_dt, out)
                 for b in range(nb):
                     for k in range(6):
@@ -373,23 +337,17 @@ def _run_steps(step1, step2, actuation, acceleration, m, d, nsteps, substeps, ct
 _ENTRY: dict = {}
 
 
-def _kernel(dtype=np.float64):
-    """The compiled step kernel's entry point for element data of ``dtype`` (skips Numba's
-    per-call type dispatch, which costs more than the kernel's own work for a small robot),
-    compiled on first use."""
-    dt = np.dtype(dtype)
-    if dt not in _ENTRY:
-        f, i = np.zeros((1, 6)), np.zeros((1, 6), np.int64)
-        e = np.zeros((1, 6), dt)
-        args = (np.zeros((7, 1), dt), np.zeros((3, 20), dt), np.zeros((1, 7), dt), i, np.zeros(1, np.int64),
-                np.zeros((1, 76)), np.zeros((1, 6)), np.zeros((1, 22), dt), e, np.zeros((9, 0)),
-                np.zeros((7, 1), dt), np.zeros((5, 6)), np.ones((1, 3)), np.zeros((1, 9)), np.zeros((1, 3)), f, np.zeros((1, 3)),
-                f, np.zeros(1), 0.0, 0.0, f)
-        _terrain_wrenches(*args)
+def _entry(dispatcher, args):
+    """The compiled entry point of ``dispatcher`` for arguments like ``args`` (Numba's
+    per-call typing of the ~35 arguments costs more than ten physics steps), compiled on
+    first use; keyed by the element data's float type (the only type that varies)."""
+    key = (dispatcher.__name__, args[11].dtype if dispatcher is _run_steps else args[0].dtype)
+    if key not in _ENTRY:
         sig = tuple(numba.typeof(a) for a in args)
-        ov = _terrain_wrenches.overloads.get(sig)
-        _ENTRY[dt] = getattr(ov, "entry_point", _terrain_wrenches) if ov is not None else _terrain_wrenches
-    return _ENTRY[dt]
+        if sig not in dispatcher.overloads:
+            dispatcher.compile(sig)
+        _ENTRY[key] = getattr(dispatcher.overloads[sig], "entry_point", dispatcher)
+    return _ENTRY[key]
 
 
 # ------------------------------------------------------------------------------------------
@@ -437,6 +395,38 @@ def mujoco_c_functions():
 # ------------------------------------------------------------------------------------------
 # The terrain
 # ------------------------------------------------------------------------------------------
+#: Elements per cluster (the unit of the per-cluster bed test).
+CLUSTER = 16
+
+
+def _centre_box(x: np.ndarray) -> tuple:
+    """(centre x, y, z, half sizes x, y, z) of the box around points x (3, n)."""
+    lo, hi = x.min(axis=1), x.max(axis=1)
+    return (*((lo + hi) / 2), *((hi - lo) / 2))
+
+
+def _clusters(x: np.ndarray, size: int):
+    """(perm, runs): an order of the points x (3, n) and [lo, hi) runs of at most ``size``
+    consecutive points in it, each spatially compact (split at the median of the longest
+    extent, recursively)."""
+    perm, runs = [], []
+
+    def split(idx):
+        if len(idx) <= size:
+            runs.append((len(perm), len(perm) + len(idx)))
+            perm.extend(idx.tolist())
+            return
+        pts = x[:, idx]
+        ax = int(np.argmax(pts.max(axis=1) - pts.min(axis=1)))
+        order = idx[np.argsort(pts[ax], kind="stable")]
+        half = len(order) // 2
+        split(order[:half])
+        split(order[half:])
+
+    split(np.arange(x.shape[1]))
+    return np.array(perm, dtype=np.int64), runs
+
+
 def _names(model, objtype, n: int) -> list[str]:
     return [mujoco.mj_id2name(model, objtype, i) or "" for i in range(n)]
 
@@ -467,7 +457,6 @@ class GranularTerrain:
     stick: bool = True
     sections: int = 16
     precision: str = "float64"
-    quadrature: str = "centroid"
     surfaces: dict = field(default_factory=dict, init=False)
 
     def __post_init__(self):
@@ -481,8 +470,6 @@ class GranularTerrain:
         if self.precision not in ("float64", "float32"):
             raise InputError("precision", f"must be 'float64' or 'float32', got {self.precision!r}")
         dt = np.dtype(self.precision)
-        if self.quadrature not in ("centroid", "clip"):
-            raise InputError("quadrature", f"must be 'centroid' or 'clip', got {self.quadrature!r}")
         if self.dynamic_lambda is not None:
             positive("dynamic_lambda", self.dynamic_lambda)
         if self.max_edge is not None:
@@ -516,7 +503,7 @@ class GranularTerrain:
         self.body_ids = np.array(sorted(per_body), dtype=np.int64)
         self.geom_ids = np.array(sorted(g for gs in per_body.values() for g in gs), dtype=np.int64)
         # surfaces
-        G, meta, rad = [], [], []
+        G, meta, rad, runs = [], [], [], []
         lo = 0
         for bid in self.body_ids:
             name = body_names[bid] or f"body{bid}"
@@ -529,6 +516,9 @@ class GranularTerrain:
             surf = body_surface(m, gs, name, me, self.sections)
             self.surfaces[name] = surf
             p = surf.packed()  # (7, n): rft3d's struct-of-arrays layout
+            perm, body_runs = _clusters(p[:3], CLUSTER)
+            p = p[:, perm]  # elements in cluster order (the sum is the same up to rounding)
+            runs.append(body_runs)
             G.append(p)
             meta.append((bid, int(m.body_rootid[bid]), lo, lo + p.shape[1]))
             rad.append(float(np.linalg.norm(p[:3], axis=0).max()))
@@ -537,21 +527,17 @@ class GranularTerrain:
         self._G = G64.T  # (n, 7) rows, for per-element reads (float64)
         self._GT = np.ascontiguousarray(G64, dtype=dt)  # the kernel's copy, in its precision
         self._C = np.ascontiguousarray(coefficients(), dtype=dt)
-        clip = self.quadrature == "clip"
-        if clip:  # the elements' vertices (9, n), body frame
-            self._V = np.ascontiguousarray(np.concatenate(
-                [s.vertices[s.faces].reshape(-1, 9).T for s in self.surfaces.values()], axis=1))
-        else:
-            self._V = np.zeros((9, 0))
-        self._Gc = np.zeros_like(self._GT)
         self._wk = np.zeros((5, 6))
-        # box of the points that decide contact (element centres; vertices when clipped), body frame
-        pts = [self._V[3 * c:3 * c + 3] for c in range(3)] if clip else [G64[:3]]
+        # box of the element centres of each body and of each cluster (body frame)
         self._box = np.zeros((len(meta), 6))
+        cl = []
         for k, (_, _, a, b) in enumerate(meta):
-            lo_ = np.min([p[:, a:b].min(axis=1) for p in pts], axis=0)
-            hi_ = np.max([p[:, a:b].max(axis=1) for p in pts], axis=0)
-            self._box[k, :3], self._box[k, 3:] = (lo_ + hi_) / 2, (hi_ - lo_) / 2
+            self._box[k] = _centre_box(G64[:3, a:b])
+            c0 = len(cl)
+            for lo_, hi_ in runs[k]:
+                cl.append((a + lo_, a + hi_, *_centre_box(G64[:3, a + lo_:a + hi_])))
+            meta[k] = meta[k] + (c0, len(cl))
+        self._cl = np.array(cl, dtype=float)
         anc = []
         for k, bid in enumerate(self.body_ids):  # the dofs that move each body (its ancestors')
             start = len(anc)
@@ -559,7 +545,7 @@ class GranularTerrain:
             while b > 0:
                 anc.extend(int(j) for j in range(m.nv) if m.dof_bodyid[j] == b)
                 b = int(m.body_parentid[b])
-            meta[k] = meta[k] + (start, len(anc))
+            meta[k] = meta[k][:4] + (start, len(anc)) + meta[k][4:]
         self._anc = np.array(anc + [0], dtype=np.int64)
         self._meta = np.array(meta, dtype=np.int64)
         nb = len(self.body_ids)
@@ -568,7 +554,7 @@ class GranularTerrain:
         self._P = np.zeros((nb, 7), dt)  # rft3d's kernel parameters; sphere about the body origin
         self._P[:, 0:3] = (self.medium.xi_n, self.medium.mu_surf,
                            (self.dynamic_lambda or 0.0) * self.medium.bulk_density)
-        self._P[:, 6] = rad if not clip else 1e30  # clipped: element centres may leave the sphere (the box culls)
+        self._P[:, 6] = rad
         self._mobility_set = False
         self._bound = None
         self._T = np.zeros((nb, 22), dt)
@@ -612,13 +598,14 @@ class GranularTerrain:
             mujoco.mj_fwdActuation(m, data)
             mujoco.mj_fwdAcceleration(m, data)
         self._bind(data)
-        _kernel(self._GT.dtype)(*self._args, self.surface, stick_dt, self._out)
+        args = (*self._args, self.surface, stick_dt, self._out)
+        _entry(_terrain_wrenches, args)(*args)
         return self._out
 
     def _bind(self, data) -> None:
         if self._bound is not data:  # MjData arrays never move: bind their views once
             self._args = (self._GT, self._C, self._P, self._meta, self._anc, self._S, self._box, self._T,
-                          self._o, self._V, self._Gc, self._wk, data.xpos, data.xmat, data.xipos, data.cvel, data.subtree_com,
+                          self._o, self._cl, self._wk, data.xpos, data.xmat, data.xipos, data.cvel, data.subtree_com,
                           data.cdof, data.qacc_smooth)
             self._xfrc = data.xfrc_applied
             self._bound = data
@@ -732,13 +719,14 @@ class GranularTerrain:
         self._bind(data)
         times = np.zeros((nsteps - first if timing else 0, 2))
         dt = m.opt.timestep
+        args = (funcs["mj_step1"], funcs["mj_step2"], funcs["mj_fwdActuation"], funcs["mj_fwdAcceleration"],
+                m._address, data._address, nsteps - first, substeps, data.ctrl,
+                sched[first:] if len(sched) else sched, self._xfrc, *self._args, self.surface,
+                m.opt.timestep / substeps if self.stick else 0.0, self._out, bool(terrain),
+                funcs["clock_gettime"], np.zeros(2, np.int64), times)
         m.opt.timestep = dt / substeps
         try:
-            _run_steps(funcs["mj_step1"], funcs["mj_step2"], funcs["mj_fwdActuation"], funcs["mj_fwdAcceleration"],
-                       m._address, data._address, nsteps - first, substeps, data.ctrl,
-                       sched[first:] if len(sched) else sched, self._xfrc, *self._args, self.surface,
-                       m.opt.timestep if self.stick else 0.0, self._out, bool(terrain),
-                       funcs["clock_gettime"], np.zeros(2, np.int64), times)
+            _entry(_run_steps, args)(*args)
         finally:
             m.opt.timestep = dt
         if timing:
@@ -803,7 +791,7 @@ class GranularTerrain:
         return {"bodies": [self.model.body(int(b)).name for b in self.body_ids],
                 "elements": self.n_elements, "medium": self.medium.describe(),
                 "surface_m": self.surface, "dynamic_lambda": self.dynamic_lambda,
-                "stick": self.stick, "precision": self.precision, "quadrature": self.quadrature,
+                "stick": self.stick, "precision": self.precision,
                 "floor_geoms": [self.model.geom(int(g)).name for g in self.floor_ids]}
 
 
