@@ -236,21 +236,24 @@ def walk(leg: str = "c", medium: str = "poppy LP", duration: float = 4.0, settle
     # the compiled loop (GranularTerrain.run) runs `block` steps per call, the gait's targets
     # as its ctrl schedule (the same trajectory as a per-step controller); the torso is
     # sampled between calls: height and tilt every SAMPLE_EVERY steps, the path once per stride
+    # (after steps n0 + 1 + k stride, frames after steps 1 + k every: one step in, the first
+    # call is a single step)
     block = math.gcd(math.gcd(stride_steps, SAMPLE_EVERY), n0)
     if renderer is not None:
         block = math.gcd(block, every)
     tic = time.perf_counter()
-    for i in range(0, n, block):
-        k = min(block, n - i)
+    j = 0  # steps done
+    while j < n:
+        k = 1 if j == 0 else min(block, n - j)
         res = terrain.run(data, k, ctrl=gait_schedule(data.time, k, dt, robot), timing=True)
         t_terrain += float(np.nansum(res["step_times_s"][:, 1]))
-        j = i + k  # steps done
+        j += k
         if j > n0:
             heights.append(float(data.xipos[1, 2]))
             min_up = min(min_up, float(data.xmat[1, 8]))
-        if j >= n0 and (j - n0) % stride_steps == 0:
-            track.append((data.xipos[1, 0], data.xipos[1, 1], math.atan2(data.xmat[1, 3], data.xmat[1, 0])))
-        if renderer is not None and i % every == 0:
+            if (j - 1 - n0) % stride_steps == 0:
+                track.append((data.xipos[1, 0], data.xipos[1, 1], math.atan2(data.xmat[1, 3], data.xmat[1, 0])))
+        if renderer is not None and (j - 1) % every == 0:
             renderer.update_scene(data, camera=cam)
             frames.append(renderer.render().copy())
     wall = time.perf_counter() - tic
