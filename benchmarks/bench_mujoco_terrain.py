@@ -7,7 +7,9 @@ Per physics step of the demo (C legs on poppy LP, the demo's gait), the MuJoCo p
   ``mj_step2`` and the terrain kernel in one Numba loop, 10 steps per call with the gait's
   targets as the ctrl schedule; the phases are timed inside the loop (clock_gettime); the rest
   rule on (default), and the same with the plain explicit force (``stick=False``), with the
-  float32 element loop, and with the bed test per body only (no clusters: ``body_box_only``);
+  float32 element loop, with the element law on whole runs of touching clusters instead of
+  their gathered elements in the bed (``cluster_runs_no_gather``), and with the bed test per
+  body only (no clusters: ``body_box_only``);
 * ``python_per_step``: the per-step Python path (``mj_step1``; ``terrain.apply``;
   ``mj_step2``; ``terrain.remove``; the gait line counts as MuJoCo's part), timed with
   perf_counter;
@@ -64,19 +66,19 @@ def _summary(step_times: np.ndarray, wall: float, steps: int, dt: float, **extra
 
 
 def compiled(stick: bool = True, precision: str = "float64", terrain_on: bool = True,
-             cluster: int | None = None) -> dict:
+             cluster: int | None = None, gather: bool = True) -> dict:
     dt = md.HEXAPOD.timestep
     out = {}
     for timed in (True, False):  # timed phases; then an untimed run for the wall clock
         model, data, terrain = md.build("c", "poppy LP", stick=stick)
-        if precision != "float64" or cluster:
-            keep = am.CLUSTER
-            am.CLUSTER = cluster or keep
+        if precision != "float64" or cluster or not gather:
+            keep = am.CLUSTER, am.GATHER
+            am.CLUSTER, am.GATHER = cluster or keep[0], gather
             try:
                 terrain = md.GranularTerrain(model, terrain.medium, bodies=md.terrain_bodies(), stick=stick,
                                              precision=precision)
             finally:
-                am.CLUSTER = keep
+                am.CLUSTER, am.GATHER = keep
         terrain.run(data, WARM, ctrl=md.gait_schedule(0.0, WARM, dt), terrain=terrain_on)
         parts = []
         tic = time.perf_counter()
@@ -140,7 +142,8 @@ CASES = {
     "compiled_loop": lambda: compiled(True),
     "compiled_loop_plain_force": lambda: compiled(False),
     "compiled_loop_float32": lambda: compiled(True, "float32"),
-    "compiled_loop_body_box_only": lambda: compiled(True, cluster=10 ** 9),
+    "compiled_loop_cluster_runs_no_gather": lambda: compiled(True, gather=False),
+    "compiled_loop_body_box_only": lambda: compiled(True, cluster=10 ** 9, gather=False),
     "python_per_step": lambda: python_loop(False),
     "baseline_per_body_evaluator_applyFT": lambda: python_loop(True),
     "mujoco_alone_compiled": lambda: compiled(True, terrain_on=False),
@@ -159,6 +162,8 @@ def measure() -> dict:
               "compiled_over_python_sim_to_wall": c["sim_to_wall"] / p["sim_to_wall"],
               "plain_over_rest_rule_terrain_time":
                   best["compiled_loop_plain_force"]["terrain_us_per_step"] / c["terrain_us_per_step"],
+              "no_gather_over_gather_terrain_time":
+                  best["compiled_loop_cluster_runs_no_gather"]["terrain_us_per_step"] / c["terrain_us_per_step"],
               "body_box_only_over_clusters_terrain_time":
                   best["compiled_loop_body_box_only"]["terrain_us_per_step"] / c["terrain_us_per_step"],
               "float32_over_float64_terrain_time":

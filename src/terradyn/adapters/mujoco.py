@@ -158,7 +158,7 @@ def max_generic_stress() -> float:
 # Compiled step: all terrain bodies in one call
 # ------------------------------------------------------------------------------------------
 @numba.njit(cache=True, fastmath=True, error_model="numpy")
-def _terrain_wrenches(G, C, P, meta, anc, S, box, T, o, cl, wk, xpos, xmat, xipos, cvel, subtree_com, cdof,
+def _terrain_wrenches(G, C, P, meta, anc, S, box, T, o, cl, Gc, wk, xpos, xmat, xipos, cvel, subtree_com, cdof,
                       qacc, surface, stick_dt, out):  # pragma: no cover - compiled
     """RFT wrench (about the CoM, world frame) of every terrain body into out (nb, 6).
 
@@ -216,19 +216,30 @@ def _terrain_wrenches(G, C, P, meta, anc, S, box, T, o, cl, wk, xpos, xmat, xipo
         T[b, 13] = cv[4] + wz * dx - wx * dz
         T[b, 14] = cv[5] + wx * dy - wy * dx
         T[b, 21] = surface - xipos[bid, 2]
-        # rft3d's compiled element law (the same kernel as rft3d.wrench) on the runs of
-        # clusters whose box reaches below the surface
+        # rft3d's compiled element law (the same kernel as rft3d.wrench) on the clusters whose
+        # box reaches below the surface: their elements in the bed gathered into Gc (one
+        # kernel call per body), or (Gc empty) the runs of such clusters as they are
         r20, r21, r22 = xmat[bid, 6], xmat[bid, 7], xmat[bid, 8]
         a20, a21, a22 = abs(r20), abs(r21), abs(r22)
+        gather = Gc.shape[1] > 0
+        h0 = surface - xpos[bid, 2]
+        n_in = meta[b, 2]
         start = -1
         end = -1
         for c in range(meta[b, 6], meta[b, 7] + 1):
             touch = False
             if c < meta[b, 7]:
-                lowc = (xpos[bid, 2] + r20 * cl[c, 2] + r21 * cl[c, 3] + r22 * cl[c, 4]
+                lowc = (r20 * cl[c, 2] + r21 * cl[c, 3] + r22 * cl[c, 4]
                         - a20 * cl[c, 5] - a21 * cl[c, 6] - a22 * cl[c, 7])
-                touch = lowc - 1e-12 < surface
-            if touch:
+                touch = lowc - 1e-12 < h0
+            if gather:
+                if touch:
+                    for i in range(int(cl[c, 0]), int(cl[c, 1])):
+                        if r20 * G[0, i] + r21 * G[1, i] + r22 * G[2, i] < h0:
+                            for r in range(7):
+                                Gc[r, n_in] = G[r, i]
+                            n_in += 1
+            elif touch:
                 if start < 0:
                     start = int(cl[c, 0])
                 end = int(cl[c, 1])
@@ -237,6 +248,10 @@ def _terrain_wrenches(G, C, P, meta, anc, S, box, T, o, cl, wk, xpos, xmat, xipo
                 for k in range(6):
                     out[b, k] += o[b, k]
                 start = -1
+        if gather and n_in > meta[b, 2]:
+            _block(Gc, T, b, meta[b, 2], n_in, C, P[b], o, b)
+            for k in range(6):
+                out[b, k] += o[b, k]
         Fx, Fy, Fz, Tx, Ty, Tz = out[b, 0], out[b, 1], out[b, 2], out[b, 3], out[b, 4], out[b, 5]
         if stick_dt > 0.0:  # no-reversal cap: the terrain impulse can at most stop the body
             ex = xipos[bid, 0] - subtree_com[root, 0]
@@ -287,7 +302,7 @@ def _terrain_wrenches(G, C, P, meta, anc, S, box, T, o, cl, wk, xpos, xmat, xipo
 
 @numba.njit(cache=True, fastmath=True, error_model="numpy")
 def _run_steps(step1, step2, actuation, acceleration, m, d, nsteps, substeps, ctrl, schedule, xfrc,
-               G, C, P, meta, anc, S, box, T, o, cl, wk, xpos, xmat, xipos, cvel, subtree_com, cdof, qacc,
+               G, C, P, meta, anc, S, box, T, o, cl, Gc, wk, xpos, xmat, xipos, cvel, subtree_com, cdof, qacc,
                surface, stick_dt, out, use_terrain, clock, ts, times):  # pragma: no cover - compiled
     """``nsteps`` model steps of ``substeps`` rounds of mj_step1, terrain, mj_step2 each, in
     one compiled call: MuJoCo's C functions (``step1`` ...: ctypes functions, ``m``, ``d``
@@ -315,7 +330,7 @@ def _run_steps(step1, step2, actuation, acceleration, m, d, nsteps, substeps, ct
                 if stick_dt > 0.0:
                     actuation(m, d)
                     acceleration(m, d)
-                _terrain_wrenches(G, C, P, meta, anc, S, box, T, o, cl, wk, xpos, xmat, xipos, cvel,
+                _terrain_wrenches(G, C, P, meta, anc, S, box, T, o, cl, Gc, wk, xpos, xmat, xipos, cvel,
                                   subtree_com, cdof, qacc, surface, stick_dt, out)
                 for b in range(nb):
                     for k in range(6):
@@ -397,6 +412,8 @@ def mujoco_c_functions():
 # ------------------------------------------------------------------------------------------
 #: Elements per cluster (the unit of the per-cluster bed test).
 CLUSTER = 16
+#: Gather the elements in the bed of the touching clusters (one kernel call per body).
+GATHER = True
 
 
 def _centre_box(x: np.ndarray) -> tuple:
@@ -528,6 +545,7 @@ class GranularTerrain:
         self._GT = np.ascontiguousarray(G64, dtype=dt)  # the kernel's copy, in its precision
         self._C = np.ascontiguousarray(coefficients(), dtype=dt)
         self._wk = np.zeros((5, 6))
+        self._Gc = np.zeros((7, self._GT.shape[1] if GATHER else 0), dt)  # gathered elements in the bed
         # box of the element centres of each body and of each cluster (body frame)
         self._box = np.zeros((len(meta), 6))
         cl = []
@@ -605,7 +623,7 @@ class GranularTerrain:
     def _bind(self, data) -> None:
         if self._bound is not data:  # MjData arrays never move: bind their views once
             self._args = (self._GT, self._C, self._P, self._meta, self._anc, self._S, self._box, self._T,
-                          self._o, self._cl, self._wk, data.xpos, data.xmat, data.xipos, data.cvel, data.subtree_com,
+                          self._o, self._cl, self._Gc, self._wk, data.xpos, data.xmat, data.xipos, data.cvel, data.subtree_com,
                           data.cdof, data.qacc_smooth)
             self._xfrc = data.xfrc_applied
             self._bound = data
