@@ -14,6 +14,18 @@ free surface. Each physics step (:meth:`GranularTerrain.step`):
 3. ``mj_step2`` - integration; then the terrain wrench is taken out of ``xfrc_applied`` again,
    so the user's own applied forces there are kept.
 
+:meth:`GranularTerrain.run` runs many such steps in ONE compiled call: MuJoCo's C
+``mj_step1`` / ``mj_step2`` (ctypes, from the library the ``mujoco`` wheel ships) and the
+terrain kernel in a Numba loop on MjData's own arrays, ctrl held or set from a schedule
+(the control-rate contract is in its doc); the trajectory is the per-step path's. Where the
+library cannot be used it warns and falls back to :meth:`GranularTerrain.step`.
+
+Culling (exact): a body whose box of element centres is above the surface gets a zero
+wrench; inside a body, the elements are ordered into spatially compact clusters of
+:data:`CLUSTER`, each with its box, and only the elements in the bed of the clusters that
+reach below the surface go to the element law (gathered into one block per body).
+``precision="float32"`` runs rft3d's single-precision element loop.
+
 Geoms: boxes, capsules, cylinders, spheres, ellipsoids and meshes are turned into closed
 triangle meshes in the body frame (trimesh), all geoms of one body into one
 :class:`terradyn.rft3d.Body`. Geoms of one body should not overlap much (faces inside another
@@ -173,8 +185,10 @@ def _terrain_wrenches(G, C, P, meta, anc, S, box, T, o, cl, Gc, wk, xpos, xmat, 
     lowest possible element centre is above the surface is skipped (zero wrench; exact, the
     elements there feel nothing). The same test per cluster: cl (ncl, 8) float64 rows [first
     element, end, box centre (3), half sizes (3)] of spatially compact runs of a body's elements
-    (body b's clusters: meta[b, 6]..meta[b, 7]); the element law runs on the runs of clusters
-    that may touch the bed only. wk (5, 6) float64 scratch. S (nb, 76) static floats per body: [0] the largest
+    (body b's clusters: meta[b, 6]..meta[b, 7]); the element law runs only on the clusters
+    that may touch the bed: with Gc (7, n, G's type) non-empty, their elements whose centre
+    is in the bed are gathered into Gc[:, meta[b, 2]:] and evaluated in one call, else the
+    runs of touching clusters are evaluated as they are. wk (5, 6) float64 scratch. S (nb, 76) static floats per body: [0] the largest
     element distance from the body origin, [4:40] the 6 x 6 mobility J M^-1 J^T of the CoM
     twist (v, omega) in the body frame, [40:76] its (pseudo-)inverse, the effective inertia M_b.
     cdof (nv, 6), qacc (nv,): with stick_dt > 0 the body twists are the predicted ones,
@@ -460,7 +474,8 @@ class GranularTerrain:
     whose rigid contact with the terrain geoms is switched off (None: the plane/height-field
     geoms of the world body). ``max_edge``: mesh resolution of boxes, capsules, cylinders, m
     (None: a quarter of the largest half-size of each body's geoms). ``stick``: the
-    no-reversal (rest) rule of the module doc.
+    no-reversal (rest) rule of the module doc. ``precision``: the element loop's float type,
+    "float64" (default) or "float32" (within 1e-4 of it).
     """
 
     model: object
