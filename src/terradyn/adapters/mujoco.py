@@ -14,6 +14,18 @@ free surface. Each physics step (:meth:`GranularTerrain.step`):
 3. ``mj_step2`` - integration; then the terrain wrench is taken out of ``xfrc_applied`` again,
    so the user's own applied forces there are kept.
 
+:meth:`GranularTerrain.run` runs many such steps in ONE compiled call: MuJoCo's C
+``mj_step1`` / ``mj_step2`` (ctypes, from the library the ``mujoco`` wheel ships) and the
+terrain kernel in a Numba loop on MjData's own arrays, ctrl held or set from a schedule
+(the control-rate contract is in its doc); the trajectory is the per-step path's. Where the
+library cannot be used it warns and falls back to :meth:`GranularTerrain.step`.
+
+Culling (exact): a body whose box of element centres is above the surface gets a zero
+wrench; inside a body, the elements are ordered into spatially compact clusters of
+:data:`CLUSTER`, each with its box, and only the elements in the bed of the clusters that
+reach below the surface go to the element law (gathered into one block per body).
+``precision="float32"`` runs rft3d's single-precision element loop.
+
 Geoms: boxes, capsules, cylinders, spheres, ellipsoids and meshes are turned into closed
 triangle meshes in the body frame (trimesh), all geoms of one body into one
 :class:`terradyn.rft3d.Body`. Geoms of one body should not overlap much (faces inside another
@@ -67,8 +79,6 @@ from ..rft3d import Body, Medium3D, from_trimesh, rotation_matrices
 from ..rft3d.engine import _block
 from ..rft3d.model import cap_tangential, coefficients, generic_alpha
 
-#: The 3D-RFT coefficient table (a compile-time constant of the step kernel).
-_COEF = coefficients()
 
 try:
     import mujoco
@@ -160,34 +170,45 @@ def max_generic_stress() -> float:
 # Compiled step: all terrain bodies in one call
 # ------------------------------------------------------------------------------------------
 @numba.njit(cache=True, fastmath=True, error_model="numpy")
-def _terrain_wrenches(G, P, meta, anc, S, T, xpos, xmat, xipos, cvel, subtree_com, cdof, qacc,
-                      surface, stick_dt, out):  # pragma: no cover - compiled
+def _terrain_wrenches(G, C, P, meta, anc, S, box, T, o, cl, Gc, wk, xpos, xmat, xipos, cvel, subtree_com, cdof,
+                      qacc, surface, stick_dt, out):  # pragma: no cover - compiled
     """RFT wrench (about the CoM, world frame) of every terrain body into out (nb, 6).
 
     G (7, n) elements of all bodies (rft3d's struct-of-arrays layout: cx, cy, cz, nx, ny, nz,
-    area), body b's in [meta[b, 2], meta[b, 3]); P (nb, 7) rft3d's kernel parameters per body
-    (xi_n, mu_surf, lambda rho, bounding sphere about the body origin); meta[b, 0] body
-    id, meta[b, 1] its root body, meta[b, 4:6] its range in ``anc`` (the dofs that move it).
-    S (nb, 76) static floats per body: [0] the largest element distance from the body origin
-    (bodies wholly above the surface are skipped), [1:4] unused (the law's parameters are in P), [4:40] the
-    6 x 6 mobility J M^-1 J^T of the CoM twist (v, omega) in the body frame, [40:76] its
-    (pseudo-)inverse, the effective inertia M_b. T (nb, 22) pose
-    rows (scratch).
+    area), body b's in [meta[b, 2], meta[b, 3]); C the coefficient table and P (nb, 7) rft3d's
+    kernel parameters per body (xi_n, mu_surf, lambda rho, bounding sphere about the body
+    origin), T (nb, 22) pose rows and o (nb, 6) scratch, all four in the element loop's float
+    type (float64 or float32: G's dtype); the poses are written relative to the body's CoM, so
+    float32 loses nothing to large world coordinates. meta[b, 0] body id, meta[b, 1] its root
+    body, meta[b, 4:6] its range in ``anc`` (the dofs that move it). box (nb, 6): the box
+    around the body's element centres in the body frame (centre, half sizes): a body whose
+    lowest possible element centre is above the surface is skipped (zero wrench; exact, the
+    elements there feel nothing). The same test per cluster: cl (ncl, 8) float64 rows [first
+    element, end, box centre (3), half sizes (3)] of spatially compact runs of a body's elements
+    (body b's clusters: meta[b, 6]..meta[b, 7]); the element law runs only on the clusters
+    that may touch the bed: with Gc (7, n, G's type) non-empty, their elements whose centre
+    is in the bed are gathered into Gc[:, meta[b, 2]:] and evaluated in one call, else the
+    runs of touching clusters are evaluated as they are. wk (5, 6) float64 scratch. S (nb, 76) static floats per body: [0] the largest
+    element distance from the body origin, [4:40] the 6 x 6 mobility J M^-1 J^T of the CoM
+    twist (v, omega) in the body frame, [40:76] its (pseudo-)inverse, the effective inertia M_b.
     cdof (nv, 6), qacc (nv,): with stick_dt > 0 the body twists are the predicted ones,
     cvel + stick_dt * sum(cdof qacc) (qacc = qacc_smooth), and the no-reversal cap applies:
     where the wrench's impulse would more than stop that twist along the wrench (in the
     kinetic-energy metric), the body is held: the wrench that stops its whole twist,
     -M_b xi / dt, is applied if it is no stronger than the RFT wrench (in the same metric),
     else the RFT wrench scaled down to the one that just stops the twist along it."""
-    C = _COEF
     for b in range(meta.shape[0]):
         bid = meta[b, 0]
         for k in range(6):
             out[b, k] = 0.0
-        if xpos[bid, 2] - S[b, 0] >= surface:
+        low = xpos[bid, 2]  # lowest point of the box of element centres
+        for k in range(3):
+            r2k = xmat[bid, 6 + k]
+            low += r2k * box[b, k] - abs(r2k) * box[b, 3 + k]
+        if low - 1e-12 >= surface:
             continue
         root = meta[b, 1]
-        cv = np.empty(6)
+        cv = wk[0]
         for k in range(6):
             cv[k] = cvel[bid, k]
         if stick_dt > 0.0:
@@ -199,24 +220,58 @@ def _terrain_wrenches(G, P, meta, anc, S, T, xpos, xmat, xipos, cvel, subtree_co
         dx = xpos[bid, 0] - subtree_com[root, 0]
         dy = xpos[bid, 1] - subtree_com[root, 1]
         dz = xpos[bid, 2] - subtree_com[root, 2]
-        for k in range(3):
-            T[b, k] = xpos[bid, k]
+        for k in range(3):  # body origin relative to the CoM (the torque point: 0)
+            T[b, k] = xpos[bid, k] - xipos[bid, k]
             T[b, 15 + k] = cv[k]
-            T[b, 18 + k] = xipos[bid, k]
+            T[b, 18 + k] = 0.0
         for k in range(9):
             T[b, 3 + k] = xmat[bid, k]
         T[b, 12] = cv[3] + wy * dz - wz * dy
         T[b, 13] = cv[4] + wz * dx - wx * dz
         T[b, 14] = cv[5] + wx * dy - wy * dx
-        T[b, 21] = surface
-        # rft3d's compiled element law (the same kernel as rft3d.wrench)
-        _block(G, T, b, meta[b, 2], meta[b, 3], C, P[b], out, b)
+        T[b, 21] = surface - xipos[bid, 2]
+        # rft3d's compiled element law (the same kernel as rft3d.wrench) on the clusters whose
+        # box reaches below the surface: their elements in the bed gathered into Gc (one
+        # kernel call per body), or (Gc empty) the runs of such clusters as they are
+        r20, r21, r22 = xmat[bid, 6], xmat[bid, 7], xmat[bid, 8]
+        a20, a21, a22 = abs(r20), abs(r21), abs(r22)
+        gather = Gc.shape[1] > 0
+        h0 = surface - xpos[bid, 2]
+        n_in = meta[b, 2]
+        start = -1
+        end = -1
+        for c in range(meta[b, 6], meta[b, 7] + 1):
+            touch = False
+            if c < meta[b, 7]:
+                lowc = (r20 * cl[c, 2] + r21 * cl[c, 3] + r22 * cl[c, 4]
+                        - a20 * cl[c, 5] - a21 * cl[c, 6] - a22 * cl[c, 7])
+                touch = lowc - 1e-12 < h0
+            if gather:
+                if touch:
+                    for i in range(int(cl[c, 0]), int(cl[c, 1])):
+                        if r20 * G[0, i] + r21 * G[1, i] + r22 * G[2, i] < h0:
+                            for r in range(7):
+                                Gc[r, n_in] = G[r, i]
+                            n_in += 1
+            elif touch:
+                if start < 0:
+                    start = int(cl[c, 0])
+                end = int(cl[c, 1])
+            elif start >= 0:  # flush the run of touching clusters
+                _block(G, T, b, start, end, C, P[b], o, b)
+                for k in range(6):
+                    out[b, k] += o[b, k]
+                start = -1
+        if gather and n_in > meta[b, 2]:
+            _block(Gc, T, b, meta[b, 2], n_in, C, P[b], o, b)
+            for k in range(6):
+                out[b, k] += o[b, k]
         Fx, Fy, Fz, Tx, Ty, Tz = out[b, 0], out[b, 1], out[b, 2], out[b, 3], out[b, 4], out[b, 5]
         if stick_dt > 0.0:  # no-reversal cap: the terrain impulse can at most stop the body
             ex = xipos[bid, 0] - subtree_com[root, 0]
             ey = xipos[bid, 1] - subtree_com[root, 1]
             ez = xipos[bid, 2] - subtree_com[root, 2]
-            xi = np.empty(6)  # predicted twist at the CoM: v_com, omega (world)
+            xi = wk[1]  # predicted twist at the CoM: v_com, omega (world)
             xi[0] = cv[3] + wy * ez - wz * ey
             xi[1] = cv[4] + wz * ex - wx * ez
             xi[2] = cv[5] + wx * ey - wy * ex
@@ -225,7 +280,7 @@ def _terrain_wrenches(G, P, meta, anc, S, T, xpos, xmat, xipos, cvel, subtree_co
             for k in range(6):
                 power += xi[k] * out[b, k]
             if power < 0.0:
-                wb = np.empty(6)  # the wrench in the body frame (R^T F, R^T tau)
+                wb = wk[2]  # the wrench in the body frame (R^T F, R^T tau)
                 for k in range(3):
                     wb[k] = xmat[bid, k] * Fx + xmat[bid, 3 + k] * Fy + xmat[bid, 6 + k] * Fz
                     wb[3 + k] = xmat[bid, k] * Tx + xmat[bid, 3 + k] * Ty + xmat[bid, 6 + k] * Tz
@@ -238,11 +293,13 @@ def _terrain_wrenches(G, P, meta, anc, S, T, xpos, xmat, xipos, cvel, subtree_co
                     if sc < 1.0:
                         # the wrench that stops the whole predicted twist: -M_b xi / dt (body
                         # frame); held if it is no stronger than the RFT wrench (same metric)
-                        xb = np.empty(6)
+                        xb = wk[3]
                         for k in range(3):
                             xb[k] = xmat[bid, k] * xi[0] + xmat[bid, 3 + k] * xi[1] + xmat[bid, 6 + k] * xi[2]
                             xb[3 + k] = xmat[bid, k] * xi[3] + xmat[bid, 3 + k] * xi[4] + xmat[bid, 6 + k] * xi[5]
-                        ws = np.zeros(6)
+                        ws = wk[4]
+                        for k in range(6):
+                            ws[k] = 0.0
                         kin = 0.0
                         for i in range(6):
                             for j in range(6):
@@ -257,26 +314,150 @@ def _terrain_wrenches(G, P, meta, anc, S, T, xpos, xmat, xipos, cvel, subtree_co
                                 out[b, k] *= sc
 
 
-_ENTRY: list = []
+@numba.njit(cache=True, fastmath=True, error_model="numpy")
+def _run_steps(step1, step2, actuation, acceleration, m, d, nsteps, substeps, ctrl, schedule, xfrc,
+               G, C, P, meta, anc, S, box, T, o, cl, Gc, wk, xpos, xmat, xipos, cvel, subtree_com, cdof, qacc,
+               surface, stick_dt, out, use_terrain, clock, ts, times):  # pragma: no cover - compiled
+    """``nsteps`` model steps of ``substeps`` rounds of mj_step1, terrain, mj_step2 each, in
+    one compiled call: MuJoCo's C functions (``step1`` ...: ctypes functions, ``m``, ``d``
+    the MjModel / MjData addresses) and the terrain kernel on MjData's own arrays. ctrl[:] =
+    schedule[i] before model step i if schedule has rows, else ctrl is held. With
+    use_terrain False only MuJoCo runs (the benchmark's reference). With times (nsteps, 2)
+    the seconds of each step in MuJoCo and in the terrain are added into it (``clock``: libc
+    clock_gettime, CLOCK_MONOTONIC; ts a (2,) int64 timespec)."""
+    nb = meta.shape[0]
+    timed = times.shape[0] > 0
+    t0 = t1 = t2 = 0.0
+    for i in range(nsteps):
+        if schedule.shape[0] > 0:
+            for k in range(ctrl.shape[0]):
+                ctrl[k] = schedule[i, k]
+        for _ in range(substeps):
+            if timed:
+                clock(1, ts.ctypes.data)
+                t0 = ts[0] + 1e-9 * ts[1]
+            step1(m, d)
+            if timed:
+                clock(1, ts.ctypes.data)
+                t1 = ts[0] + 1e-9 * ts[1]
+            if use_terrain:
+                if stick_dt > 0.0:
+                    actuation(m, d)
+                    acceleration(m, d)
+                _terrain_wrenches(G, C, P, meta, anc, S, box, T, o, cl, Gc, wk, xpos, xmat, xipos, cvel,
+                                  subtree_com, cdof, qacc, surface, stick_dt, out)
+                for b in range(nb):
+                    for k in range(6):
+                        xfrc[meta[b, 0], k] += out[b, k]
+            if timed:
+                clock(1, ts.ctypes.data)
+                t2 = ts[0] + 1e-9 * ts[1]
+            step2(m, d)
+            if use_terrain:
+                for b in range(nb):
+                    for k in range(6):
+                        xfrc[meta[b, 0], k] -= out[b, k]
+            if timed:
+                clock(1, ts.ctypes.data)
+                times[i, 0] += (t1 - t0) + (ts[0] + 1e-9 * ts[1] - t2)
+                times[i, 1] += t2 - t1
 
 
-def _kernel():
-    """The compiled step kernel's entry point (skips Numba's per-call type dispatch, which
-    costs more than the kernel's own work for a small robot), compiled on first use."""
-    if not _ENTRY:
-        if not _terrain_wrenches.signatures:
-            f, i = np.zeros((1, 6)), np.zeros((1, 6), np.int64)
-            _terrain_wrenches(np.zeros((7, 1)), np.zeros((1, 7)), i, np.zeros(1, np.int64), np.zeros((1, 76)),
-                              np.zeros((1, 22)), np.ones((1, 3)), np.zeros((1, 9)), np.zeros((1, 3)),
-                              f, np.zeros((1, 3)), f, np.zeros(1), 0.0, 0.0, f)
-        sig = _terrain_wrenches.signatures[0]
-        _ENTRY.append(getattr(_terrain_wrenches.overloads[sig], "entry_point", _terrain_wrenches))
-    return _ENTRY[0]
+_ENTRY: dict = {}
+
+
+def _entry(dispatcher, args):
+    """The compiled entry point of ``dispatcher`` for arguments like ``args`` (Numba's
+    per-call typing of the ~35 arguments costs more than ten physics steps), compiled on
+    first use; keyed by the element data's float type (the only type that varies)."""
+    key = (dispatcher.__name__, args[11].dtype if dispatcher is _run_steps else args[0].dtype)
+    if key not in _ENTRY:
+        sig = tuple(numba.typeof(a) for a in args)
+        if sig not in dispatcher.overloads:
+            dispatcher.compile(sig)
+        _ENTRY[key] = getattr(dispatcher.overloads[sig], "entry_point", dispatcher)
+    return _ENTRY[key]
+
+
+# ------------------------------------------------------------------------------------------
+# MuJoCo's C library, for the compiled stepping loop
+# ------------------------------------------------------------------------------------------
+_LIB: dict = {}
+
+
+def mujoco_c_functions():
+    """(functions, reason): ctypes handles of MuJoCo's ``mj_step1``, ``mj_step2``,
+    ``mj_fwdActuation``, ``mj_fwdAcceleration`` and libc's ``clock_gettime`` from the shared
+    library the ``mujoco`` package ships next to its ``__init__.py``
+    (``libmujoco.so*`` / ``mujoco*.dll`` / ``libmujoco*.dylib``), or (None, why not)."""
+    if "f" not in _LIB:
+        import ctypes
+        import ctypes.util
+        import glob
+
+        here = os.path.dirname(mujoco.__file__)
+        found = sorted(glob.glob(os.path.join(here, "libmujoco.so*")) + glob.glob(os.path.join(here, "libmujoco*.dylib"))
+                       + glob.glob(os.path.join(here, "mujoco*.dll")))
+        funcs, why = None, None
+        if not found:
+            why = f"MuJoCo's shared library was not found next to the mujoco package ({here})"
+        else:
+            try:
+                lib = ctypes.CDLL(found[-1])
+                libc = ctypes.CDLL(ctypes.util.find_library("c") or None)
+                funcs = {}
+                for name in ("mj_step1", "mj_step2", "mj_fwdActuation", "mj_fwdAcceleration"):
+                    fn = getattr(lib, name)
+                    fn.argtypes, fn.restype = [ctypes.c_void_p, ctypes.c_void_p], None
+                    funcs[name] = fn
+                clk = libc.clock_gettime
+                clk.argtypes, clk.restype = [ctypes.c_int, ctypes.c_void_p], ctypes.c_int
+                funcs["clock_gettime"] = clk
+                if not hasattr(mujoco.MjModel, "_address"):
+                    raise AttributeError("mujoco.MjModel has no _address (raw pointer) in this version")
+            except (OSError, AttributeError) as e:
+                funcs, why = None, f"MuJoCo's shared library {found[-1]} could not be used: {e}"
+        _LIB["f"], _LIB["why"] = funcs, why
+    return _LIB["f"], _LIB["why"]
 
 
 # ------------------------------------------------------------------------------------------
 # The terrain
 # ------------------------------------------------------------------------------------------
+#: Elements per cluster (the unit of the per-cluster bed test).
+CLUSTER = 16
+#: Gather the elements in the bed of the touching clusters (one kernel call per body).
+GATHER = True
+
+
+def _centre_box(x: np.ndarray) -> tuple:
+    """(centre x, y, z, half sizes x, y, z) of the box around points x (3, n)."""
+    lo, hi = x.min(axis=1), x.max(axis=1)
+    return (*((lo + hi) / 2), *((hi - lo) / 2))
+
+
+def _clusters(x: np.ndarray, size: int):
+    """(perm, runs): an order of the points x (3, n) and [lo, hi) runs of at most ``size``
+    consecutive points in it, each spatially compact (split at the median of the longest
+    extent, recursively)."""
+    perm, runs = [], []
+
+    def split(idx):
+        if len(idx) <= size:
+            runs.append((len(perm), len(perm) + len(idx)))
+            perm.extend(idx.tolist())
+            return
+        pts = x[:, idx]
+        ax = int(np.argmax(pts.max(axis=1) - pts.min(axis=1)))
+        order = idx[np.argsort(pts[ax], kind="stable")]
+        half = len(order) // 2
+        split(order[:half])
+        split(order[half:])
+
+    split(np.arange(x.shape[1]))
+    return np.array(perm, dtype=np.int64), runs
+
+
 def _names(model, objtype, n: int) -> list[str]:
     return [mujoco.mj_id2name(model, objtype, i) or "" for i in range(n)]
 
@@ -293,7 +474,8 @@ class GranularTerrain:
     whose rigid contact with the terrain geoms is switched off (None: the plane/height-field
     geoms of the world body). ``max_edge``: mesh resolution of boxes, capsules, cylinders, m
     (None: a quarter of the largest half-size of each body's geoms). ``stick``: the
-    no-reversal (rest) rule of the module doc.
+    no-reversal (rest) rule of the module doc. ``precision``: the element loop's float type,
+    "float64" (default) or "float32" (within 1e-4 of it).
     """
 
     model: object
@@ -306,6 +488,7 @@ class GranularTerrain:
     max_edge: float | None = None
     stick: bool = True
     sections: int = 16
+    precision: str = "float64"
     surfaces: dict = field(default_factory=dict, init=False)
 
     def __post_init__(self):
@@ -316,6 +499,9 @@ class GranularTerrain:
             raise InputError("medium", "must be a terradyn.rft3d.Medium3D (e.g. rft3d.medium3d('poppy LP'))")
         self.surface = finite("surface", self.surface, "m")
         self.stick = bool(self.stick)
+        if self.precision not in ("float64", "float32"):
+            raise InputError("precision", f"must be 'float64' or 'float32', got {self.precision!r}")
+        dt = np.dtype(self.precision)
         if self.dynamic_lambda is not None:
             positive("dynamic_lambda", self.dynamic_lambda)
         if self.max_edge is not None:
@@ -349,7 +535,7 @@ class GranularTerrain:
         self.body_ids = np.array(sorted(per_body), dtype=np.int64)
         self.geom_ids = np.array(sorted(g for gs in per_body.values() for g in gs), dtype=np.int64)
         # surfaces
-        G, meta, rad = [], [], []
+        G, meta, rad, runs = [], [], [], []
         lo = 0
         for bid in self.body_ids:
             name = body_names[bid] or f"body{bid}"
@@ -362,12 +548,29 @@ class GranularTerrain:
             surf = body_surface(m, gs, name, me, self.sections)
             self.surfaces[name] = surf
             p = surf.packed()  # (7, n): rft3d's struct-of-arrays layout
+            perm, body_runs = _clusters(p[:3], CLUSTER)
+            p = p[:, perm]  # elements in cluster order (the sum is the same up to rounding)
+            runs.append(body_runs)
             G.append(p)
             meta.append((bid, int(m.body_rootid[bid]), lo, lo + p.shape[1]))
             rad.append(float(np.linalg.norm(p[:3], axis=0).max()))
             lo += p.shape[1]
-        self._GT = np.ascontiguousarray(np.concatenate(G, axis=1))
-        self._G = self._GT.T  # (n, 7) rows, for per-element reads
+        G64 = np.ascontiguousarray(np.concatenate(G, axis=1))
+        self._G = G64.T  # (n, 7) rows, for per-element reads (float64)
+        self._GT = np.ascontiguousarray(G64, dtype=dt)  # the kernel's copy, in its precision
+        self._C = np.ascontiguousarray(coefficients(), dtype=dt)
+        self._wk = np.zeros((5, 6))
+        self._Gc = np.zeros((7, self._GT.shape[1] if GATHER else 0), dt)  # gathered elements in the bed
+        # box of the element centres of each body and of each cluster (body frame)
+        self._box = np.zeros((len(meta), 6))
+        cl = []
+        for k, (_, _, a, b) in enumerate(meta):
+            self._box[k] = _centre_box(G64[:3, a:b])
+            c0 = len(cl)
+            for lo_, hi_ in runs[k]:
+                cl.append((a + lo_, a + hi_, *_centre_box(G64[:3, a + lo_:a + hi_])))
+            meta[k] = meta[k] + (c0, len(cl))
+        self._cl = np.array(cl, dtype=float)
         anc = []
         for k, bid in enumerate(self.body_ids):  # the dofs that move each body (its ancestors')
             start = len(anc)
@@ -375,19 +578,20 @@ class GranularTerrain:
             while b > 0:
                 anc.extend(int(j) for j in range(m.nv) if m.dof_bodyid[j] == b)
                 b = int(m.body_parentid[b])
-            meta[k] = meta[k] + (start, len(anc))
+            meta[k] = meta[k][:4] + (start, len(anc)) + meta[k][4:]
         self._anc = np.array(anc + [0], dtype=np.int64)
         self._meta = np.array(meta, dtype=np.int64)
         nb = len(self.body_ids)
         self._S = np.zeros((nb, 76))
         self._S[:, 0] = rad
-        self._P = np.zeros((nb, 7))  # rft3d's kernel parameters; sphere about the body origin
+        self._P = np.zeros((nb, 7), dt)  # rft3d's kernel parameters; sphere about the body origin
         self._P[:, 0:3] = (self.medium.xi_n, self.medium.mu_surf,
                            (self.dynamic_lambda or 0.0) * self.medium.bulk_density)
         self._P[:, 6] = rad
         self._mobility_set = False
         self._bound = None
-        self._T = np.zeros((nb, 22))
+        self._T = np.zeros((nb, 22), dt)
+        self._o = np.zeros((nb, 6), dt)
         self._out = np.zeros((nb, 6))
         self._disable_floor_contact(geom_names)
 
@@ -422,20 +626,28 @@ class GranularTerrain:
         stick_dt = 0.0
         if self.stick:
             if not self._mobility_set:
-                mob = self.mobility(data)
-                self._S[:, 4:40] = mob.reshape(-1, 36)
-                self._S[:, 40:76] = np.linalg.pinv(mob, hermitian=True).reshape(-1, 36)
-                self._mobility_set = True
+                self._set_mobility(data)
             stick_dt = m.opt.timestep
             mujoco.mj_fwdActuation(m, data)
             mujoco.mj_fwdAcceleration(m, data)
+        self._bind(data)
+        args = (*self._args, self.surface, stick_dt, self._out)
+        _entry(_terrain_wrenches, args)(*args)
+        return self._out
+
+    def _bind(self, data) -> None:
         if self._bound is not data:  # MjData arrays never move: bind their views once
-            self._args = (self._GT, self._P, self._meta, self._anc, self._S, self._T, data.xpos, data.xmat,
-                          data.xipos, data.cvel, data.subtree_com, data.cdof, data.qacc_smooth)
+            self._args = (self._GT, self._C, self._P, self._meta, self._anc, self._S, self._box, self._T,
+                          self._o, self._cl, self._Gc, self._wk, data.xpos, data.xmat, data.xipos, data.cvel, data.subtree_com,
+                          data.cdof, data.qacc_smooth)
             self._xfrc = data.xfrc_applied
             self._bound = data
-        _kernel()(*self._args, self.surface, stick_dt, self._out)
-        return self._out
+
+    def _set_mobility(self, data) -> None:
+        mob = self.mobility(data)
+        self._S[:, 4:40] = mob.reshape(-1, 36)
+        self._S[:, 40:76] = np.linalg.pinv(mob, hermitian=True).reshape(-1, 36)
+        self._mobility_set = True
 
     def apply(self, data) -> np.ndarray:
         """Add the terrain wrenches to ``data.xfrc_applied``; returns them ((nb, 6), a view
@@ -469,6 +681,90 @@ class GranularTerrain:
                 self.remove(data)
         finally:
             m.opt.timestep = dt
+
+    def run(self, data, nsteps: int, ctrl=None, substeps: int = 1, compiled: bool = True,
+            terrain: bool = True, timing: bool = False) -> dict:
+        """``nsteps`` model steps with the terrain in ONE compiled call (MuJoCo's C
+        ``mj_step1`` / ``mj_step2`` and the terrain kernel in a Numba loop on MjData's own
+        arrays; no Python per step). Same physics as calling :meth:`step` ``nsteps`` times.
+
+        Control-rate contract: the controller runs between calls, physics inside them.
+        ``ctrl=None`` holds ``data.ctrl`` constant for the ``nsteps`` steps (a controller at
+        1 / (nsteps timestep)); an array (nsteps, nu) sets ``data.ctrl`` to row i before step
+        i (a precomputed schedule, e.g. a gait's targets: then the trajectory is the one of a
+        per-step controller). The user's ``xfrc_applied`` / ``qfrc_applied`` are held too.
+
+        ``compiled=False``, or MuJoCo's C library not found (:func:`mujoco_c_functions`;
+        a warning says why, once), runs the same steps through the per-step Python path
+        (:meth:`step`). ``terrain=False`` runs MuJoCo alone (the benchmark's reference);
+        ``timing=True`` times each step's MuJoCo and terrain parts (clock_gettime in the
+        loop). Returns {"compiled": bool, "step_times_s": (steps, 2) seconds in MuJoCo and in
+        the terrain per compiled step (timing only; the first step is not in it when the rest
+        rule's first step ran in Python)}."""
+        m = self.model
+        nsteps = int(nsteps)
+        if nsteps < 0:
+            raise InputError("nsteps", f"must be >= 0, got {nsteps}")
+        substeps = int(substeps)
+        if substeps < 1:
+            raise InputError("substeps", f"must be >= 1, got {substeps}")
+        sched = np.zeros((0, m.nu))
+        if ctrl is not None:
+            sched = np.ascontiguousarray(ctrl, dtype=float)
+            if sched.shape != (nsteps, m.nu):
+                raise InputError("ctrl", f"must have shape (nsteps, nu) = ({nsteps}, {m.nu}), got {sched.shape}")
+            if not np.isfinite(sched).all():
+                raise InputError("ctrl", "must be finite")
+        funcs = None
+        if compiled:
+            funcs, why = mujoco_c_functions()
+            if funcs is None and not _WARNED:
+                import warnings
+
+                warnings.warn(f"GranularTerrain.run: {why}; running the per-step Python path instead",
+                              RuntimeWarning, stacklevel=2)
+                _WARNED.append(True)
+        res = {"compiled": funcs is not None}
+        if nsteps == 0:
+            return res
+        first = 0
+        if terrain and self.stick and not self._mobility_set:  # the rest rule's M_b: first step in Python
+            if len(sched):
+                data.ctrl[:] = sched[0]
+            self.step(data, substeps)
+            first = 1
+        if funcs is None:
+            import time
+
+            times = np.full((nsteps - first, 2), np.nan)
+            for i in range(first, nsteps):
+                if len(sched):
+                    data.ctrl[:] = sched[i]
+                tic = time.perf_counter()
+                if terrain:
+                    self.step(data, substeps)
+                else:
+                    _plain_step(m, data, substeps)
+                times[i - first, 0] = time.perf_counter() - tic
+            if timing:
+                res["step_times_s"] = times  # whole steps (the split is not timed here)
+            return res
+        self._bind(data)
+        times = np.zeros((nsteps - first if timing else 0, 2))
+        dt = m.opt.timestep
+        args = (funcs["mj_step1"], funcs["mj_step2"], funcs["mj_fwdActuation"], funcs["mj_fwdAcceleration"],
+                m._address, data._address, nsteps - first, substeps, data.ctrl,
+                sched[first:] if len(sched) else sched, self._xfrc, *self._args, self.surface,
+                m.opt.timestep / substeps if self.stick else 0.0, self._out, bool(terrain),
+                funcs["clock_gettime"], np.zeros(2, np.int64), times)
+        m.opt.timestep = dt / substeps
+        try:
+            _entry(_run_steps, args)(*args)
+        finally:
+            m.opt.timestep = dt
+        if timing:
+            res["step_times_s"] = times
+        return res
 
     # ---------------------------------------------------------------- stiffness rule
     def stiffness(self) -> np.ndarray:
@@ -528,8 +824,22 @@ class GranularTerrain:
         return {"bodies": [self.model.body(int(b)).name for b in self.body_ids],
                 "elements": self.n_elements, "medium": self.medium.describe(),
                 "surface_m": self.surface, "dynamic_lambda": self.dynamic_lambda,
-                "stick": self.stick,
+                "stick": self.stick, "precision": self.precision,
                 "floor_geoms": [self.model.geom(int(g)).name for g in self.floor_ids]}
+
+
+_WARNED: list = []
+
+
+def _plain_step(m, data, substeps: int) -> None:
+    dt = m.opt.timestep
+    m.opt.timestep = dt / substeps
+    try:
+        for _ in range(substeps):
+            mujoco.mj_step1(m, data)
+            mujoco.mj_step2(m, data)
+    finally:
+        m.opt.timestep = dt
 
 
 def energy(model, data) -> float:
@@ -541,4 +851,4 @@ def energy(model, data) -> float:
     return float(data.energy.sum())
 
 
-__all__ = ["GranularTerrain", "body_surface", "energy", "max_generic_stress", "GEOM_TYPES"]
+__all__ = ["GranularTerrain", "body_surface", "energy", "max_generic_stress", "mujoco_c_functions", "GEOM_TYPES"]

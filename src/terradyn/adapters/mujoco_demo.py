@@ -69,6 +69,8 @@ class Hexapod:
 
 
 HEXAPOD = Hexapod()
+#: The walk samples the torso's height and tilt every SAMPLE_EVERY physics steps.
+SAMPLE_EVERY = 10
 HIPS = (("fl", 1, 1, 0), ("ml", 0, 1, 1), ("rl", -1, 1, 0),
         ("fr", 1, -1, 1), ("mr", 0, -1, 0), ("rr", -1, -1, 1))  # name, x index, side, tripod
 
@@ -172,6 +174,16 @@ def gait_targets(t: float, robot: Hexapod = HEXAPOD) -> np.ndarray:
     return np.array([base + np.pi * tri for *_, tri in HIPS])
 
 
+def gait_schedule(t0: float, n: int, dt: float, robot: Hexapod = HEXAPOD) -> np.ndarray:
+    """(n, 6) hip targets of :func:`gait_targets` for the n steps from time t0 (the times
+    summed step by step like MuJoCo's ``data.time``): the ``ctrl`` schedule of
+    :meth:`GranularTerrain.run`, so the compiled loop drives the robot exactly as a per-step
+    controller would."""
+    t = np.cumsum(np.concatenate([[t0], np.full(n - 1, dt)])) if n > 0 else np.zeros(0)
+    tri = np.array([tri for *_, tri in HIPS], float)
+    return (2 * np.pi * robot.frequency * t)[:, None] + np.pi * tri[None, :]
+
+
 @dataclass
 class WalkResult:
     leg: str
@@ -199,7 +211,10 @@ def walk(leg: str = "c", medium: str = "poppy LP", duration: float = 4.0, settle
     """Run the hexapod for ``duration`` s. Speed: the torso CoM's path over ground after
     ``settle`` s, sampled once per stride (so the bobbing within a stride does not count, and
     a robot that veers is measured along its path), divided by the time; the heading change
-    and the largest torso tilt are reported too. With ``renderer`` (a mujoco.Renderer), frames are appended to ``frames`` at ``fps``."""
+    and the largest torso tilt (sampled every :data:`SAMPLE_EVERY` steps) are reported too.
+    The physics runs in the compiled loop (:meth:`GranularTerrain.run`, the gait as its ctrl
+    schedule: the trajectory of a per-step controller). With ``renderer`` (a mujoco.Renderer),
+    frames are appended to ``frames`` at ``fps``."""
     duration = positive("duration", duration, "s")
     settle = in_range("settle", settle, 0.0, duration * 0.9, "s")
     model, data, terrain = build(leg, medium, robot, dynamic_lambda=dynamic_lambda)
@@ -218,21 +233,27 @@ def walk(leg: str = "c", medium: str = "poppy LP", duration: float = 4.0, settle
     heights = []
     min_up = 1.0
     t_terrain = 0.0
+    # the compiled loop (GranularTerrain.run) runs `block` steps per call, the gait's targets
+    # as its ctrl schedule (the same trajectory as a per-step controller); the torso is
+    # sampled between calls: height and tilt every SAMPLE_EVERY steps, the path once per stride
+    # (after steps n0 + 1 + k stride, frames after steps 1 + k every: one step in, the first
+    # call is a single step)
+    block = math.gcd(math.gcd(stride_steps, SAMPLE_EVERY), n0)
+    if renderer is not None:
+        block = math.gcd(block, every)
     tic = time.perf_counter()
-    for i in range(n):
-        data.ctrl[:] = gait_targets(data.time, robot)
-        mujoco.mj_step1(model, data)
-        t1 = time.perf_counter()
-        terrain.apply(data)
-        t_terrain += time.perf_counter() - t1
-        mujoco.mj_step2(model, data)
-        terrain.remove(data)
-        if i >= n0:
+    j = 0  # steps done
+    while j < n:
+        k = 1 if j == 0 else min(block, n - j)
+        res = terrain.run(data, k, ctrl=gait_schedule(data.time, k, dt, robot), timing=True)
+        t_terrain += float(np.nansum(res["step_times_s"][:, 1]))
+        j += k
+        if j > n0:
             heights.append(float(data.xipos[1, 2]))
             min_up = min(min_up, float(data.xmat[1, 8]))
-            if (i - n0) % stride_steps == 0:
+            if (j - 1 - n0) % stride_steps == 0:
                 track.append((data.xipos[1, 0], data.xipos[1, 1], math.atan2(data.xmat[1, 3], data.xmat[1, 0])))
-        if renderer is not None and i % every == 0:
+        if renderer is not None and (j - 1) % every == 0:
             renderer.update_scene(data, camera=cam)
             frames.append(renderer.render().copy())
     wall = time.perf_counter() - tic
@@ -370,6 +391,6 @@ def study_json(results: list[WalkResult], extra: dict) -> str:
 
 
 __all__ = ["ROBOTS", "LEG_SHAPES", "DEMO_MEDIA", "Hexapod", "HEXAPOD", "hexapod_mjcf", "leg_mesh",
-           "build", "walk", "walk_study", "render_frames", "press_foot",
+           "build", "walk", "walk_study", "gait_schedule", "SAMPLE_EVERY", "render_frames", "press_foot",
            "box_equilibrium_depth", "foot_mjcf", "terrain_bodies", "gait_targets", "WalkResult",
            "study_table", "study_json"]
