@@ -1,12 +1,15 @@
 """Terrain filter step latency (N = 5000, condition parameters in the state) side by side with
 the present coefficient particle filter, idle and with two busy processes.
 
-Both filters assimilate the same RFT trials of the flat leg (Fx, Fz, torque at 5 % noise,
-181 samples over the stance, a fresh filter per trial):
+All filters assimilate the same RFT trials of the flat leg (Fx, Fz, torque at 5 % noise,
+181 samples over the stance, a fresh filter per trial), in the same run:
 * ``present``: terradyn.dddas.filter.ParticleFilter (numba) over the coefficients of one
   HOSVD basis pooled over all media (D coefficients), three scalar updates per sample;
 * ``terrain``: terradyn.dddas.terrain.TerrainFilter (medium + hip height in the state,
-  strength and biases marginalised, resample-move), one update per sample (three channels).
+  strength and biases marginalised, resample-move), one update per sample (three channels),
+  with the vectorised move (``move_kernel="vector"``, the default);
+* ``terrain_per_particle``: the same filter with the previous, scalar move kernel
+  (``move_kernel="per-particle"``): the terrain filter as it was before the vectorised move.
 A step = everything the filter does for one sample, including any resampling and MH move.
 Targets (issue 13): terrain mean <= 200 us, p99 <= 1 ms on the 2 cores.
 
@@ -42,10 +45,11 @@ def stats(t):
 
 
 def run(model, lin, trials):
-    t_new, t_old, n_res = [], [], 0
+    t_new, t_pp, t_old, n_res, n_res_pp = [], [], [], 0, 0
     for k, tr in enumerate(trials):
         chans = [Channel(n, w, sd, sd) for n, w, sd in tr["channels"]]  # bias prior std = 5 % of RMS
         f = TerrainFilter(model, chans, n_particles=N, seed=k)
+        fpp = TerrainFilter(model, chans, n_particles=N, seed=k, move_kernel="per-particle")
         pf = ParticleFilter(lin.mean, lin.cov, n_particles=N, rng=k, jitter_floor=0.01)
         rows = {n: lin.rows(w) for n, w, _ in tr["channels"]}
         sig = {n: np.sqrt(sd ** 2 + rows[n][2] ** 2) for n, _, sd in tr["channels"]}
@@ -55,40 +59,52 @@ def run(model, lin, trials):
             f.update(th, vals)
             t_new.append(time.perf_counter() - t0)
             t0 = time.perf_counter()
+            fpp.update(th, vals)
+            t_pp.append(time.perf_counter() - t0)
+            t0 = time.perf_counter()
             for n, (H, off, _) in rows.items():
                 pf.update(H[i], off[i], vals[n], sig[n][i])
             t_old.append(time.perf_counter() - t0)
         n_res += f.n_resamples
+        n_res_pp += fpp.n_resamples
     return {"terrain": stats(t_new) | {"resample_fraction": n_res / len(t_new)},
+            "terrain_per_particle": stats(t_pp) | {"resample_fraction": n_res_pp / len(t_pp)},
             "present": stats(t_old) | {"D": int(len(lin.mean))}}
 
 
-def parts(model, tr, repeats=200):
-    """Minimum and median times (us) of the three parts of a step, each repeated on one
-    filter state 40 samples into a trial: the update without resampling, the systematic
-    resampling, and one Metropolis-Hastings sweep. Minima estimate an unloaded machine."""
+def parts(model, tr, repeats=200, move_kernel="vector"):
+    """Minimum and median times (us) of the parts of a step, each repeated on one filter
+    state 40 samples into a trial: the update without resampling, the systematic
+    resampling, resampling + one Metropolis-Hastings sweep, and the sort by medium that the
+    next update does after a move (the particles are sorted again, untimed, before each
+    repeat). Minima estimate an unloaded machine."""
     chans = [Channel(n, w, sd, sd) for n, w, sd in tr["channels"]]
-    f = TerrainFilter(model, chans, n_particles=N, seed=0, ess_threshold=0.0)
+    f = TerrainFilter(model, chans, n_particles=N, seed=0, ess_threshold=0.0, move_kernel=move_kernel)
     for i in range(40):
         f.update(tr["theta"][i], {n: float(tr["obs"][n][i]) for n in tr["obs"]})
     th, vals = tr["theta"][40], {n: float(tr["obs"][n][40]) for n in tr["obs"]}
     f.check_theta = lambda t: float(t)  # repeat one sample
 
-    def clock(fn):
+    def clock(fn, setup=lambda: None):
         t = []
         for _ in range(repeats):
+            setup()
             t0 = time.perf_counter()
             fn()
             t.append(time.perf_counter() - t0)
         t = np.array(t) * 1e6
         return {"min_us": float(t.min()), "p50_us": float(np.median(t))}
 
+    def unsort():  # a move, untimed, so that the sort has work to do
+        f.resample()
+        f._unsorted = True
+
     out = {"update": clock(lambda: f.update(th, vals))}
     f.move_sweeps = 0
     out["resample"] = clock(f.resample)
     f.move_sweeps = 1
-    rs = clock(f.resample)
-    out["resample_and_move"] = rs
+    out["resample_and_move"] = clock(f.resample, f._sort)
+    out["sort_after_move"] = clock(f._sort, unsort)
     return out
 
 
@@ -104,9 +120,10 @@ def main():
     rng = np.random.default_rng(0)
     trials = [make_trial("flat", model, rng) for _ in range(TRIALS)]
     run(model, lin, trials[:1])  # compile / load the kernels
-    pt = parts(model, trials[0])
-    print("parts of a step (min / median us over 200 repeats): " + "; ".join(
-        f"{k} {v['min_us']:.0f} / {v['p50_us']:.0f}" for k, v in pt.items()))
+    pt = {kern: parts(model, trials[0], move_kernel=kern) for kern in ("vector", "per-particle")}
+    for kern, p in pt.items():
+        print(f"parts of a step, {kern} move (min / median us over 200 repeats): " + "; ".join(
+            f"{k} {v['min_us']:.0f} / {v['p50_us']:.0f}" for k, v in p.items()))
     rows = []
     for busy in (0, 2):
         procs = hogs(busy)
@@ -120,9 +137,11 @@ def main():
         r["busy_processes"] = busy
         r["load_average"] = os.getloadavg()[0]
         rows.append(r)
-        a, b = r["terrain"], r["present"]
+        a, b, c = r["terrain"], r["present"], r["terrain_per_particle"]
         print(f"busy={busy}: terrain mean {a['mean_us']:.0f} us p50 {a['p50_us']:.0f} p99 {a['p99_us']:.0f} "
               f"max {a['max_us']:.0f} (resampled in {100 * a['resample_fraction']:.1f} % of steps); "
+              f"terrain with the per-particle move mean {c['mean_us']:.0f} p50 {c['p50_us']:.0f} "
+              f"p99 {c['p99_us']:.0f} max {c['max_us']:.0f}, ratio p99 x{c['p99_us'] / a['p99_us']:.2f}; "
               f"present (D={b['D']}, 3 scalar updates) mean {b['mean_us']:.0f} p50 {b['p50_us']:.0f} "
               f"p99 {b['p99_us']:.0f}; ratio terrain/present mean x{a['mean_us'] / b['mean_us']:.2f}, "
               f"p99 x{a['p99_us'] / b['p99_us']:.2f}; target (mean <= 200, p99 <= 1000 us): "

@@ -43,6 +43,8 @@ from ..media import FITS, ZETA
 from .filter import _exp_neg, _log01, _u01
 from .surrogate import Surrogate
 
+#: Kernels of the Metropolis-Hastings move (see :class:`TerrainFilter`).
+MOVE_KERNELS = ("vector", "per-particle")
 #: Li 2013's five media (Table S2).
 MEDIA = ("poppy LP", "poppy CP", "0.3 mm glass LP", "0.3 mm glass CP", "3 mm glass CP")
 #: Force components the terrain surrogates model (one list: switch here to a schema's).
@@ -519,6 +521,22 @@ def _nb_sort(mi, U, Zt, S, logml, kpost, idx, buf, M):  # pragma: no cover - com
 
 
 @njit(cache=True)
+def _nb_step(U, step_max, out):  # pragma: no cover - compiled
+    """out = clip(1.5 x the particles' std of each condition, 1e-3, step_max)."""
+    N, q = U.shape
+    for j in range(q):
+        s = 0.0
+        for i in range(N):
+            s += U[i, j]
+        mu = s / N
+        v = 0.0
+        for i in range(N):
+            d = U[i, j] - mu
+            v += d * d
+        out[j] = min(max(1.5 * math.sqrt(v / N), 1e-3), step_max[j])
+
+
+@njit(cache=True)
 def _nb_seed(seed):  # pragma: no cover - compiled
     np.random.seed(seed)
 
@@ -549,9 +567,10 @@ def _nb_resample(mi, U, Zt, S, logml, ref, kpost, idx, buf):  # pragma: no cover
 
 
 @njit(cache=True, fastmath=_FAST)
-def _nb_move(mi, U, Zt, S, logml, ref, kpost, tables, Q, q1, r, der, pk, mk, step, p_jump, seed,
-             mp, Up, Zp, Sp, kp, buf2, acc):  # pragma: no cover - compiled
-    """One random-walk Metropolis-Hastings sweep on (medium, u in [0, 1]^q) targeting the
+def _nb_move_per_particle(mi, U, Zt, S, logml, ref, kpost, tables, Q, q1, r, der, pk, mk, step, p_jump, seed,
+                          mp, Up, Zp, Sp, kp, buf2, acc):  # pragma: no cover - compiled
+    """The previous move kernel (``move_kernel="per-particle"``, kept as the reference the
+    benchmark compares with): one particle at a time, scalar. One random-walk Metropolis-Hastings sweep on (medium, u in [0, 1]^q) targeting the
     posterior given all samples so far (uniform prior on the box and the media): proposals
     move u by a uniform step of std ``step`` per input and, with probability p_jump, switch to
     another medium (uniform, symmetric); random numbers from the counter hash seeded by
@@ -640,6 +659,235 @@ def _nb_move(mi, U, Zt, S, logml, ref, kpost, tables, Q, q1, r, der, pk, mk, ste
     return n_acc / N
 
 
+@njit(cache=True, fastmath=_FAST)
+def _node_stats(tables, Q, q1, r, nodes):  # pragma: no cover - compiled
+    """Per medium, channel and node g of a one-condition table T (M, G, 1, P): nodes[m, c, g] =
+    (T_g Q T_g, T_g Q T_g+1, q1 . T_g, r . T_g), so that along the cell between g and g + 1,
+    z = (1 - f) T_g + f T_g+1 gives z Q z = (1-f)^2 n0_g + 2 f (1-f) n1_g + f^2 n0_g+1 exactly."""
+    M, G, _, P = tables.shape
+    nch = Q.shape[1]
+    for m in range(M):
+        for c in range(nch):
+            for g in range(G):
+                v0 = 0.0
+                v1 = 0.0
+                v2 = 0.0
+                v3 = 0.0
+                for p in range(P):
+                    qt = 0.0
+                    qn = 0.0
+                    for p2 in range(P):
+                        qt += Q[m, c, p, p2] * tables[m, g, 0, p2]
+                        if g + 1 < G:
+                            qn += Q[m, c, p, p2] * tables[m, g + 1, 0, p2]
+                    tp = tables[m, g, 0, p]
+                    v0 += tp * qt
+                    v1 += tp * qn
+                    v2 += q1[m, c, p] * tp
+                    v3 += r[m, c, p] * tp
+                nodes[m, c, g, 0] = v0
+                nodes[m, c, g, 1] = v1
+                nodes[m, c, g, 2] = v2
+                nodes[m, c, g, 3] = v3
+
+
+@njit(cache=True, fastmath=_FAST)
+def _run_move(m, m2, base, seed, U, Zt, S, logml, kpost, tables, Q, q1, r, der, pk, mk, amp, p_jump, nodes,
+              jf, cell, Up, Zp, Sp, kp, lmp, ar, acc, mi):  # pragma: no cover - compiled
+    """The Metropolis-Hastings sweep over one run of particles of medium m (views, so every
+    loop starts at 0 and vectorises): proposals stay in m or (with probability p_jump) go to
+    m2; coefficients and statistics of the two media are blended by the 0/1 mask jf, so the
+    loops over particles are branch-free. Particles are counted from ``base`` for the random
+    numbers. With one condition (G2 = 1) the statistics come from ``nodes`` (see
+    :func:`_node_stats`) in O(channels) per particle, and the coefficients are interpolated
+    for the accepted proposals only. Returns the number of accepted proposals."""
+    n, q = U.shape
+    G1, G2, P = tables.shape[1], tables.shape[2], tables.shape[3]
+    nch = Sp.shape[1]
+    dm = m2 != m and p_jump > 0.0
+    for i in range(n):
+        b = np.uint32(base + i) * np.uint32(4)
+        jf[i] = 1.0 if (dm and _u01(b, seed) < p_jump) else 0.0
+        ar[i] = 1.0
+    for j in range(q):
+        a = amp[j]
+        for i in range(n):
+            v = U[i, j] + a * (np.float64(_u01(np.uint32(base + i) * np.uint32(4) + np.uint32(1 + j), seed)) - 0.5)
+            Up[j, i] = v
+            ar[i] = ar[i] if (v >= 0.0 and v <= 1.0) else -1.0
+    ek = lmp
+    kp0 = kp[0]
+    kp1 = kp[1]
+    if G2 == 1:
+        # one condition: every statistic is a quadratic (s0) or linear (s1, s2) function of the
+        # fraction f within the proposal's table cell, exact from the node values
+        fr = kp1
+        flat = nodes.reshape(-1)  # (M, nch, G1, 4) -> offsets ((m nch + c) G1 + g) 4 + k
+        sm = nch * G1 * 4
+        for i in range(n):
+            x = min(max(Up[0, i], 0.0), 1.0) * (G1 - 1)
+            i0 = min(int(x), G1 - 2)
+            fr[i] = x - i0
+            cell[i] = (m2 if jf[i] > 0.5 else m) * sm + i0 * 4
+            kp0[i] = pk          # precision of k
+            ek[i] = pk * mk
+        for c in range(nch):  # (the accepted proposals' statistics are recomputed below)
+            da, dd = der[m, c], der[m2, c] - der[m, c]
+            ya, yd = der[m, nch + c], der[m2, nch + c] - der[m, nch + c]
+            oc = c * G1 * 4
+            for i in range(n):
+                o = cell[i] + oc
+                j = jf[i]
+                f = fr[i]
+                h = 1.0 - f
+                v0 = h * h * flat[o] + 2.0 * f * h * flat[o + 1] + f * f * flat[o + 4]
+                v1 = h * flat[o + 2] + f * flat[o + 6]
+                v2 = h * flat[o + 3] + f * flat[o + 7]
+                kp0[i] += v0 - v1 * v1 * (da + dd * j)
+                ek[i] += v2 - v1 * (ya + yd * j)
+    else:
+        # tabulated coefficients of the proposals (bilinear in the box, either medium)
+        for i in range(n):
+            x = min(max(Up[0, i], 0.0), 1.0) * (G1 - 1)
+            i0 = min(int(x), G1 - 2)
+            f0 = x - i0
+            i1, f1 = 0, 0.0
+            if G2 > 1:
+                y = min(max(Up[1, i], 0.0), 1.0) * (G2 - 1)
+                i1 = min(int(y), G2 - 2)
+                f1 = y - i1
+            mn = m2 if jf[i] > 0.5 else m
+            for p in range(P):
+                if G2 > 1:
+                    v = ((1 - f0) * ((1 - f1) * tables[mn, i0, i1, p] + f1 * tables[mn, i0, i1 + 1, p])
+                         + f0 * ((1 - f1) * tables[mn, i0 + 1, i1, p] + f1 * tables[mn, i0 + 1, i1 + 1, p]))
+                else:
+                    v = (1 - f0) * tables[mn, i0, 0, p] + f0 * tables[mn, i0 + 1, 0, p]
+                Zp[p, i] = v
+        # full-history sufficient statistics of the proposals, channel by channel
+        for i in range(n):
+            kp0[i] = pk          # precision of k
+            ek[i] = pk * mk
+        t = kp1
+        for c in range(nch):
+            s0 = Sp[0, c]
+            s1 = Sp[1, c]
+            s2 = Sp[2, c]
+            for i in range(n):
+                s0[i] = 0.0
+                s1[i] = 0.0
+                s2[i] = 0.0
+            for p in range(P):
+                for i in range(n):
+                    t[i] = 0.0
+                for p2 in range(P):
+                    a = Q[m, c, p, p2]
+                    d = Q[m2, c, p, p2] - a
+                    zp2 = Zp[p2]
+                    for i in range(n):
+                        t[i] += (a + d * jf[i]) * zp2[i]
+                qa, qd = q1[m, c, p], q1[m2, c, p] - q1[m, c, p]
+                ra, rd = r[m, c, p], r[m2, c, p] - r[m, c, p]
+                zp = Zp[p]
+                for i in range(n):
+                    z = zp[i]
+                    s0[i] += z * t[i]
+                    s1[i] += (qa + qd * jf[i]) * z
+                    s2[i] += (ra + rd * jf[i]) * z
+            da, dd = der[m, c], der[m2, c] - der[m, c]
+            ya, yd = der[m, nch + c], der[m2, nch + c] - der[m, nch + c]
+            for i in range(n):
+                j = jf[i]
+                kp0[i] += s0[i] - s1[i] * s1[i] * (da + dd * j)
+                ek[i] += s2[i] - s1[i] * (ya + yd * j)
+    ca, cd = der[m, 2 * nch], der[m2, 2 * nch] - der[m, 2 * nch]
+    seed2 = np.uint32(seed ^ np.uint32(0x5BD1E995))
+    for i in range(n):  # k posterior; ar <- 1 / (a / pk) (>= 1 clamped; 0 marks out of the box)
+        a = kp0[i]
+        xk = ek[i] / a
+        kp1[i] = 1.0 / a
+        lmp[i] = ca + cd * jf[i] + 0.5 * ek[i] * xk
+        kp0[i] = xk
+        ar[i] = np.float64(np.float32(1.0) / np.float32(min(max(a / pk, 1.0), 1e30))) if ar[i] > 0.0 else 0.0
+    for i in range(n):  # log marginal likelihood and the MH test (uniform prior: the likelihood ratio)
+        v = ar[i]
+        ok = v > 0.0
+        lm = lmp[i] + 0.5 * np.float64(_log01(np.float32(v) if ok else np.float32(1.0)))
+        lmp[i] = lm
+        d = np.float32(min(max(lm - logml[i], -80.0), 0.0))
+        acc[i] = np.uint8(ok and _u01(np.uint32(base + i), seed2) < _exp_neg(d))
+    n_acc = 0
+    for i in range(n):
+        if acc[i]:
+            n_acc += 1
+            mn = m2 if jf[i] > 0.5 else m
+            mi[i] = mn
+            for j in range(q):
+                U[i, j] = Up[j, i]
+            if G2 == 1:
+                x = min(max(Up[0, i], 0.0), 1.0) * (G1 - 1)
+                i0 = min(int(x), G1 - 2)
+                f0 = x - i0
+                h = 1.0 - f0
+                for p in range(P):
+                    Zt[p, i] = h * tables[mn, i0, 0, p] + f0 * tables[mn, i0 + 1, 0, p]
+                for c in range(nch):
+                    S[0, c, i] = h * h * nodes[mn, c, i0, 0] + 2.0 * f0 * h * nodes[mn, c, i0, 1] \
+                        + f0 * f0 * nodes[mn, c, i0 + 1, 0]
+                    S[1, c, i] = h * nodes[mn, c, i0, 2] + f0 * nodes[mn, c, i0 + 1, 2]
+                    S[2, c, i] = h * nodes[mn, c, i0, 3] + f0 * nodes[mn, c, i0 + 1, 3]
+            else:
+                for p in range(P):
+                    Zt[p, i] = Zp[p, i]
+                for c in range(nch):
+                    S[0, c, i] = Sp[0, c, i]
+                    S[1, c, i] = Sp[1, c, i]
+                    S[2, c, i] = Sp[2, c, i]
+            logml[i] = lmp[i]
+            kpost[0, i] = kp[0, i]
+            kpost[1, i] = kp[1, i]
+    return n_acc
+
+
+@njit(cache=True)
+def _nb_move(mi, U, Zt, S, logml, ref, kpost, tables, Q, q1, r, der, pk, mk, step, p_jump, shift, seed,
+             mi0, jf, cell, nodes, Up, Zp, Sp, kp, buf2, acc):  # pragma: no cover - compiled
+    """One random-walk Metropolis-Hastings sweep on (medium, u in [0, 1]^q) targeting the
+    posterior given all samples so far (uniform prior on the box and the media), vectorised
+    over runs of equal medium. Proposals move u by a uniform step of std ``step`` per input
+    and, with probability p_jump, switch medium by the reflection m -> (shift - m) mod M, an
+    involution (so the proposal is symmetric; ``shift`` is drawn uniformly in 0..M-1 per
+    sweep, which makes the target uniform over the media). Random numbers from the counter
+    hash seeded by ``seed``. The full-history likelihood comes from the sufficient
+    statistics Q (M, nch, P, P), q1 and r (M, nch, P). mi0, jf, cell, nodes, Up, Zp, Sp, kp,
+    buf2, acc: scratch. Returns the acceptance rate; the weights become equal (ref = logml)."""
+    N, q = U.shape
+    M = tables.shape[0]
+    if tables.shape[2] == 1:
+        _node_stats(tables, Q, q1, r, nodes)
+    amp = np.empty(q)
+    for j in range(q):
+        amp[j] = step[j] * math.sqrt(12.0)
+    for i in range(N):
+        mi0[i] = mi[i]
+    n_acc = 0
+    s = 0
+    while s < N:
+        m = mi0[s]
+        e = s + 1
+        while e < N and mi0[e] == m:
+            e += 1
+        m2 = (shift - m) % M
+        n_acc += _run_move(m, m2, s, seed, U[s:e], Zt[:, s:e], S[:, :, s:e], logml[s:e], kpost[:, s:e], tables,
+                           Q, q1, r, der, pk, mk, amp, p_jump, nodes, jf[s:e], cell[s:e], Up[:, s:e], Zp[:, s:e],
+                           Sp[:, :, s:e],
+                           kp[:, s:e], buf2[0, s:e], buf2[1, s:e], acc[s:e], mi[s:e])
+        s = e
+    for i in range(N):
+        ref[i] = logml[i]
+    return n_acc / N
+
+
 # ------------------------------------------------------------------------------ the filter
 class TerrainFilter:
     """Posterior over the terrain (medium, strength k, continuous conditions) and the
@@ -651,12 +899,16 @@ class TerrainFilter:
     resampling (0: a plain bootstrap filter over static parameters, which degenerates);
     step: the largest random-walk std in box units (the step follows the particles'
     spread); p_jump: probability that a move proposes another medium; seed; model_error:
-    add the surrogates' representation error to the sensor noise.
+    add the surrogates' representation error to the sensor noise; move_kernel: ``"vector"``
+    (default: runs of equal medium, branch-free loops over particles, medium jumps by a
+    random reflection of the media) or ``"per-particle"`` (the previous scalar kernel, jumps
+    to a uniform other medium; the benchmark's reference).
     """
 
     def __init__(self, model: TerrainModel, channels: Sequence[Channel], k_std: float = 0.1,
                  n_particles: int = 5000, ess_threshold: float = 0.5, move_sweeps: int = 1,
-                 step: float = 0.05, p_jump: float = 0.2, seed: int = 0, model_error: bool = True):
+                 step: float = 0.05, p_jump: float = 0.2, seed: int = 0, model_error: bool = True,
+                 move_kernel: str = "vector"):
         self.model = model
         self.channels = list(channels)
         if not self.channels:
@@ -675,6 +927,7 @@ class TerrainFilter:
             raise InputError("move-sweeps", f"must be <= 100, got {move_sweeps}")
         self.p_jump = in_range("p-jump", p_jump, 0.0, 1.0)
         self.model_error = bool(model_error)
+        self.move_kernel = choice("move-kernel", move_kernel, MOVE_KERNELS)
         q = len(model.inputs)
         self.step = np.full(q, in_range("step", step, 1e-6, 1.0))
         self.seed = seed
@@ -714,13 +967,21 @@ class TerrainFilter:
         self._buf = np.empty(N)
         self._buf2 = np.empty((2, N))
         # proposals of the Metropolis-Hastings move
-        self._mv = (np.empty(N, np.int64), np.empty((N, q)), np.empty((N, P)), np.empty((3, nch, N)),
-                    np.empty((2, N)), self._buf2, np.empty(N, np.uint8))
+        if self.move_kernel == "vector":
+            G1, G2 = model.table.shape[1:3]
+            self._mv = (np.empty(N, np.int64), np.empty(N), np.empty(N, np.int64),
+                        np.empty((M, nch, G1 if G2 == 1 else 1, 4)), np.empty((q, N)), np.empty((P, N)),
+                        np.empty((3, nch, N)), np.empty((2, N)), self._buf2, np.empty(N, np.uint8))
+        else:
+            self._mv = (np.empty(N, np.int64), np.empty((N, q)), np.empty((N, P)), np.empty((3, nch, N)),
+                        np.empty((2, N)), self._buf2, np.empty(N, np.uint8))
         g = model.theta
         self._asc = bool(g[-1] > g[0])
         self._g = g if self._asc else g[::-1]
         self._dir = 1.0 if self._asc else -1.0
         self.ess = float(N)
+        self._unsorted = False
+        self._step = np.empty(q)
         self.n_samples = 0
         self.n_resamples = 0
         self.acceptance: list[float] = []
@@ -781,6 +1042,8 @@ class TerrainFilter:
             k0, f = len(g) - 2 - k0, 1.0 - f
         self.last_theta = t
         self.n_samples += 1
+        if self._unsorted:
+            self._sort()
         ess = _nb_assimilate(k0, f, ys, self._noise2, self._R, self._RES2, self.Q, self.q1, self.r, self.n1,
                              self.y1, self.yy, self.logc, self.der, self.pk, self.mk, self.pb, self.mi, self.Zt,
                              self.S, self.logml, self.ref, self.kpost, self._rows, self._wts, self._buf2)
@@ -797,17 +1060,30 @@ class TerrainFilter:
         _nb_resample(self.mi, self.U, self.Zt, self.S, self.logml, self.ref, self.kpost, self._idx, self._buf)
         if self.move_sweeps:
             # random-walk scale from the spread of the (now equally weighted) conditions
-            step = np.clip(1.5 * self.U.std(axis=0), 1e-3, self.step)
+            step = self._step
+            _nb_step(self.U, self.step, step)
             for _ in range(self.move_sweeps):
                 seed = np.uint32(self.rng.integers(0, 2 ** 32, dtype=np.uint64))
-                acc = _nb_move(self.mi, self.U, self.Zt, self.S, self.logml, self.ref, self.kpost, self.model.table,
-                               self.Q, self.q1, self.r, self.der, self.pk, self.mk, step, self.p_jump, seed, *self._mv)
+                args = (self.mi, self.U, self.Zt, self.S, self.logml, self.ref, self.kpost, self.model.table,
+                        self.Q, self.q1, self.r, self.der, self.pk, self.mk, step, self.p_jump)
+                if self.move_kernel == "vector":
+                    shift = int(self.rng.integers(0, len(self.model.media)))
+                    acc = _nb_move(*args, shift, seed, *self._mv)
+                else:
+                    acc = _nb_move_per_particle(*args, seed, *self._mv)
                 self.acceptance.append(float(acc))
-            if self.p_jump > 0 and len(self.model.media) > 1 and _nb_runs(self.mi) > 4 * len(self.model.media):
-                _nb_sort(self.mi, self.U, self.Zt, self.S, self.logml, self.kpost, self._idx, self._buf,
-                         len(self.model.media))
-                self.ref[:] = self.logml
+            # medium jumps break the runs of equal medium: sorted again before the next update
+            # (deferred, so that a step that resamples does not also pay for the sort)
+            self._unsorted = self.p_jump > 0 and len(self.model.media) > 1
         self.ess = float(self.n)
+
+    def _sort(self) -> None:
+        """Sort the particles by medium if the runs of equal medium got short."""
+        self._unsorted = False
+        if _nb_runs(self.mi) > 4 * len(self.model.media):
+            _nb_sort(self.mi, self.U, self.Zt, self.S, self.logml, self.kpost, self._idx, self._buf,
+                     len(self.model.media))
+            self.ref[:] = self.logml  # (the weights are equal after a move)
 
     # -------------------------------------------------------------- posterior summaries
     @property
