@@ -280,3 +280,22 @@ def test_forecast_study_small(model, monkeypatch, tmp_path):
     assert (tmp_path / "fc" / "forecast_mse.png").stat().st_size > 1000
     s = json.loads((tmp_path / "fc" / "summary.json").read_text())
     assert set(s["legs"]["flat"]["mse_mean"]) == set(FC.METHODS)
+    leg = s["legs"]["flat"]
+    # the hidden truth and the diagnostics of the Bayes ceiling are kept
+    assert np.isfinite(ds["true_hip_height_cm"]).all() and (ds["k_true"] > 0).all()
+    assert (ds["contact_samples"].sel(fraction=0.6) >= ds["contact_samples"].sel(fraction=0.3)).all()
+    conf = leg["confusion_grid"]
+    assert sum(sum(r.values()) for r in conf.values()) == ds.sizes["trial"]
+    correct = sum(conf[m][m] for m in conf) / ds.sizes["trial"]
+    assert correct == pytest.approx(leg["medium_correct_exact_bayes_grid"])
+    assert sum(b["trials"] for b in leg["identification_by_contact_samples"]) == ds.sizes["trial"]
+    assert set(leg["grid_over_oracle_by_fraction"]) == {0.3, 0.6} or set(leg["grid_over_oracle_by_fraction"]) == {"0.3", "0.6"}
+
+
+def test_in_contact_marks_the_samples_with_force():
+    from terradyn.dddas.forecast import in_contact
+
+    F = np.zeros((5, len(T.COMPONENTS)))
+    F[3:, T.COMPONENTS.index("Fz")] = [1.0, 2.0]
+    F[2, T.COMPONENTS.index("Fx")] = 0.001  # below 1 % of the maximum
+    assert in_contact(F).tolist() == [False, False, False, True, True]
