@@ -465,34 +465,29 @@ def _nb_assimilate(k0, f, ys, noise2, R, RES2, Q, q1, r, n1, y1, yy, logc, der, 
 
 
 @njit(cache=True)
-def _gather(idx, mi, U, Zt, S, logml, kpost, buf):  # pragma: no cover - compiled
-    """Reorder every per-particle array by idx (N,) through the buffer buf (N,)."""
+def _gather(idx, src, dst):  # pragma: no cover - compiled
+    """dst = every per-particle array of src reordered by idx (N,): src and dst are tuples
+    (mi, U, Zt, S, logml, kpost) of distinct arrays (the caller swaps them afterwards, so each
+    element is moved once)."""
+    mi, U, Zt, S, logml, kpost = src
+    mi2, U2, Zt2, S2, logml2, kpost2 = dst
     N = mi.shape[0]
     for i in range(N):
-        buf[i] = mi[idx[i]]
-    for i in range(N):
-        mi[i] = np.int64(buf[i])
-    for a in (logml, kpost[0], kpost[1]):
-        for i in range(N):
-            buf[i] = a[idx[i]]
-        for i in range(N):
-            a[i] = buf[i]
+        j = idx[i]
+        mi2[i] = mi[j]
+        logml2[i] = logml[j]
+        kpost2[0, i] = kpost[0, j]
+        kpost2[1, i] = kpost[1, j]
     for j in range(U.shape[1]):
         for i in range(N):
-            buf[i] = U[idx[i], j]
-        for i in range(N):
-            U[i, j] = buf[i]
+            U2[i, j] = U[idx[i], j]
     for p in range(Zt.shape[0]):
         for i in range(N):
-            buf[i] = Zt[p, idx[i]]
-        for i in range(N):
-            Zt[p, i] = buf[i]
+            Zt2[p, i] = Zt[p, idx[i]]
     for k in range(3):
         for c in range(S.shape[1]):
             for i in range(N):
-                buf[i] = S[k, c, idx[i]]
-            for i in range(N):
-                S[k, c, i] = buf[i]
+                S2[k, c, i] = S[k, c, idx[i]]
 
 
 @njit(cache=True)
@@ -505,8 +500,9 @@ def _nb_runs(mi):  # pragma: no cover - compiled
 
 
 @njit(cache=True)
-def _nb_sort(mi, U, Zt, S, logml, kpost, idx, buf, M):  # pragma: no cover - compiled
-    """Stable counting sort of the particles by medium (keeps the runs long)."""
+def _nb_sort(src, dst, idx, M):  # pragma: no cover - compiled
+    """Stable counting sort of the particles by medium (keeps the runs long): src -> dst."""
+    mi = src[0]
     N = mi.shape[0]
     cnt = np.zeros(M + 1, np.int64)
     for i in range(N):
@@ -517,7 +513,7 @@ def _nb_sort(mi, U, Zt, S, logml, kpost, idx, buf, M):  # pragma: no cover - com
         m = mi[i]
         idx[cnt[m]] = i
         cnt[m] += 1
-    _gather(idx, mi, U, Zt, S, logml, kpost, buf)
+    _gather(idx, src, dst)
 
 
 @njit(cache=True)
@@ -542,11 +538,13 @@ def _nb_seed(seed):  # pragma: no cover - compiled
 
 
 @njit(cache=True)
-def _nb_resample(mi, U, Zt, S, logml, ref, kpost, idx, buf):  # pragma: no cover - compiled
+def _nb_resample(src, dst, ref, idx, buf):  # pragma: no cover - compiled
     """Systematic resampling of every per-particle array by the weights exp(logml - ref)
-    (ancestors in order, so particles sorted by medium stay sorted); idx (N,) int64 and buf
-    (N,) float64 scratch. Afterwards ref = logml (equal weights)."""
-    N = mi.shape[0]
+    (ancestors in order, so particles sorted by medium stay sorted), src -> dst (tuples
+    (mi, U, Zt, S, logml, kpost)); idx (N,) int64 and buf (N,) float64 scratch. Afterwards
+    ref = the new logml (equal weights)."""
+    logml = src[4]
+    N = logml.shape[0]
     lw_max = -np.inf
     for i in range(N):
         lw_max = max(lw_max, logml[i] - ref[i])
@@ -561,9 +559,10 @@ def _nb_resample(mi, U, Zt, S, logml, ref, kpost, idx, buf):  # pragma: no cover
         while j < N - 1 and buf[j] < t:
             j += 1
         idx[i] = j
-    _gather(idx, mi, U, Zt, S, logml, kpost, buf)
+    _gather(idx, src, dst)
+    new = dst[4]
     for i in range(N):
-        ref[i] = logml[i]
+        ref[i] = new[i]
 
 
 @njit(cache=True, fastmath=_FAST)
@@ -660,10 +659,14 @@ def _nb_move_per_particle(mi, U, Zt, S, logml, ref, kpost, tables, Q, q1, r, der
 
 
 @njit(cache=True, fastmath=_FAST)
-def _node_stats(tables, Q, q1, r, nodes):  # pragma: no cover - compiled
-    """Per medium, channel and node g of a one-condition table T (M, G, 1, P): nodes[m, c, g] =
-    (T_g Q T_g, T_g Q T_g+1, q1 . T_g, r . T_g), so that along the cell between g and g + 1,
-    z = (1 - f) T_g + f T_g+1 gives z Q z = (1-f)^2 n0_g + 2 f (1-f) n1_g + f^2 n0_g+1 exactly."""
+def _node_stats(tables, Q, q1, r, der, pk, mk, nodes, cq):  # pragma: no cover - compiled
+    """One condition (tables (M, G, 1, P)): per medium m, channel c and node g, nodes[m, c, g] =
+    (T_g Q T_g, T_g Q T_g+1, q1 . T_g, r . T_g). Along the cell between g and g + 1,
+    z = (1 - f) T_g + f T_g+1 gives exactly z Q z = (1-f)^2 n0_g + 2 f (1-f) n1_g + f^2 n0_g+1,
+    q1 . z and r . z linear in f, so the k posterior's precision a = pk + sum_c (z Q z - (q1 .
+    z)^2 / d_c) is a quadratic and a x E[k] = pk mk + sum_c (r . z - (q1 . z) y1_c / d_c) a
+    linear function of f: cq[m, g] = (a0, a1, a2, e0, e1) with a = a0 + a1 f + a2 f^2 and
+    a E[k] = e0 + e1 f (der as in :func:`_derive`)."""
     M, G, _, P = tables.shape
     nch = Q.shape[1]
     for m in range(M):
@@ -689,18 +692,45 @@ def _node_stats(tables, Q, q1, r, nodes):  # pragma: no cover - compiled
                 nodes[m, c, g, 1] = v1
                 nodes[m, c, g, 2] = v2
                 nodes[m, c, g, 3] = v3
+        for g in range(G - 1):
+            a0 = pk
+            a1 = 0.0
+            a2 = 0.0
+            e0 = pk * mk
+            e1 = 0.0
+            for c in range(nch):
+                A0 = nodes[m, c, g, 0]
+                B = nodes[m, c, g, 1]
+                A1 = nodes[m, c, g + 1, 0]
+                u0 = nodes[m, c, g, 2]
+                u1 = nodes[m, c, g + 1, 2] - u0
+                r0 = nodes[m, c, g, 3]
+                r1 = nodes[m, c, g + 1, 3] - r0
+                d = der[m, c]
+                y = der[m, nch + c]
+                a0 += A0 - d * u0 * u0
+                a1 += 2.0 * (B - A0) - 2.0 * d * u0 * u1
+                a2 += A0 - 2.0 * B + A1 - d * u1 * u1
+                e0 += r0 - y * u0
+                e1 += r1 - y * u1
+            cq[m, g, 0] = a0
+            cq[m, g, 1] = a1
+            cq[m, g, 2] = a2
+            cq[m, g, 3] = e0
+            cq[m, g, 4] = e1
 
 
 @njit(cache=True, fastmath=_FAST)
-def _run_move(m, m2, base, seed, U, Zt, S, logml, kpost, tables, Q, q1, r, der, pk, mk, amp, p_jump, nodes,
-              jf, cell, Up, Zp, Sp, kp, lmp, ar, acc, mi):  # pragma: no cover - compiled
+def _run_move(m, m2, base, seed, U, Zt, S, logml, kpost, tables, Q, q1, r, der, pk, mk, amp, p_jump, nodes, cq,
+              jf, Up, Zp, Sp, kp, lmp, ar, acc, mi):  # pragma: no cover - compiled
     """The Metropolis-Hastings sweep over one run of particles of medium m (views, so every
     loop starts at 0 and vectorises): proposals stay in m or (with probability p_jump) go to
     m2; coefficients and statistics of the two media are blended by the 0/1 mask jf, so the
     loops over particles are branch-free. Particles are counted from ``base`` for the random
-    numbers. With one condition (G2 = 1) the statistics come from ``nodes`` (see
-    :func:`_node_stats`) in O(channels) per particle, and the coefficients are interpolated
-    for the accepted proposals only. Returns the number of accepted proposals."""
+    numbers. With one condition (G2 = 1) the k posterior's precision and mean come from the
+    per-cell quadratics ``cq`` (see :func:`_node_stats`) in O(1) per particle, and the
+    coefficients and running sums are interpolated for the accepted proposals only. Returns
+    the number of accepted proposals."""
     n, q = U.shape
     G1, G2, P = tables.shape[1], tables.shape[2], tables.shape[3]
     nch = Sp.shape[1]
@@ -719,32 +749,16 @@ def _run_move(m, m2, base, seed, U, Zt, S, logml, kpost, tables, Q, q1, r, der, 
     kp0 = kp[0]
     kp1 = kp[1]
     if G2 == 1:
-        # one condition: every statistic is a quadratic (s0) or linear (s1, s2) function of the
-        # fraction f within the proposal's table cell, exact from the node values
-        fr = kp1
-        flat = nodes.reshape(-1)  # (M, nch, G1, 4) -> offsets ((m nch + c) G1 + g) 4 + k
-        sm = nch * G1 * 4
+        # one condition: the k posterior's precision and mean are a quadratic and a linear
+        # function of the fraction f within the proposal's table cell (exact, from cq)
+        flat = cq.reshape(-1)  # (M, G1 - 1, 5) -> offsets (m (G1 - 1) + g) 5 + k
         for i in range(n):
             x = min(max(Up[0, i], 0.0), 1.0) * (G1 - 1)
             i0 = min(int(x), G1 - 2)
-            fr[i] = x - i0
-            cell[i] = (m2 if jf[i] > 0.5 else m) * sm + i0 * 4
-            kp0[i] = pk          # precision of k
-            ek[i] = pk * mk
-        for c in range(nch):  # (the accepted proposals' statistics are recomputed below)
-            da, dd = der[m, c], der[m2, c] - der[m, c]
-            ya, yd = der[m, nch + c], der[m2, nch + c] - der[m, nch + c]
-            oc = c * G1 * 4
-            for i in range(n):
-                o = cell[i] + oc
-                j = jf[i]
-                f = fr[i]
-                h = 1.0 - f
-                v0 = h * h * flat[o] + 2.0 * f * h * flat[o + 1] + f * f * flat[o + 4]
-                v1 = h * flat[o + 2] + f * flat[o + 6]
-                v2 = h * flat[o + 3] + f * flat[o + 7]
-                kp0[i] += v0 - v1 * v1 * (da + dd * j)
-                ek[i] += v2 - v1 * (ya + yd * j)
+            f = x - i0
+            o = ((m2 if jf[i] > 0.5 else m) * (G1 - 1) + i0) * 5
+            kp0[i] = flat[o] + f * (flat[o + 1] + f * flat[o + 2])  # precision of k
+            ek[i] = flat[o + 3] + f * flat[o + 4]
     else:
         # tabulated coefficients of the proposals (bilinear in the box, either medium)
         for i in range(n):
@@ -851,7 +865,7 @@ def _run_move(m, m2, base, seed, U, Zt, S, logml, kpost, tables, Q, q1, r, der, 
 
 @njit(cache=True)
 def _nb_move(mi, U, Zt, S, logml, ref, kpost, tables, Q, q1, r, der, pk, mk, step, p_jump, shift, seed,
-             mi0, jf, cell, nodes, Up, Zp, Sp, kp, buf2, acc):  # pragma: no cover - compiled
+             mi0, jf, nodes, cq, Up, Zp, Sp, kp, buf2, acc):  # pragma: no cover - compiled
     """One random-walk Metropolis-Hastings sweep on (medium, u in [0, 1]^q) targeting the
     posterior given all samples so far (uniform prior on the box and the media), vectorised
     over runs of equal medium. Proposals move u by a uniform step of std ``step`` per input
@@ -859,12 +873,12 @@ def _nb_move(mi, U, Zt, S, logml, ref, kpost, tables, Q, q1, r, der, pk, mk, ste
     involution (so the proposal is symmetric; ``shift`` is drawn uniformly in 0..M-1 per
     sweep, which makes the target uniform over the media). Random numbers from the counter
     hash seeded by ``seed``. The full-history likelihood comes from the sufficient
-    statistics Q (M, nch, P, P), q1 and r (M, nch, P). mi0, jf, cell, nodes, Up, Zp, Sp, kp,
+    statistics Q (M, nch, P, P), q1 and r (M, nch, P). mi0, jf, nodes, cq, Up, Zp, Sp, kp,
     buf2, acc: scratch. Returns the acceptance rate; the weights become equal (ref = logml)."""
     N, q = U.shape
     M = tables.shape[0]
     if tables.shape[2] == 1:
-        _node_stats(tables, Q, q1, r, nodes)
+        _node_stats(tables, Q, q1, r, der, pk, mk, nodes, cq)
     amp = np.empty(q)
     for j in range(q):
         amp[j] = step[j] * math.sqrt(12.0)
@@ -879,7 +893,7 @@ def _nb_move(mi, U, Zt, S, logml, ref, kpost, tables, Q, q1, r, der, pk, mk, ste
             e += 1
         m2 = (shift - m) % M
         n_acc += _run_move(m, m2, s, seed, U[s:e], Zt[:, s:e], S[:, :, s:e], logml[s:e], kpost[:, s:e], tables,
-                           Q, q1, r, der, pk, mk, amp, p_jump, nodes, jf[s:e], cell[s:e], Up[:, s:e], Zp[:, s:e],
+                           Q, q1, r, der, pk, mk, amp, p_jump, nodes, cq, jf[s:e], Up[:, s:e], Zp[:, s:e],
                            Sp[:, :, s:e],
                            kp[:, s:e], buf2[0, s:e], buf2[1, s:e], acc[s:e], mi[s:e])
         s = e
@@ -969,9 +983,10 @@ class TerrainFilter:
         # proposals of the Metropolis-Hastings move
         if self.move_kernel == "vector":
             G1, G2 = model.table.shape[1:3]
-            self._mv = (np.empty(N, np.int64), np.empty(N), np.empty(N, np.int64),
-                        np.empty((M, nch, G1 if G2 == 1 else 1, 4)), np.empty((q, N)), np.empty((P, N)),
-                        np.empty((3, nch, N)), np.empty((2, N)), self._buf2, np.empty(N, np.uint8))
+            G1 = G1 if G2 == 1 else 2  # (node tables only for one condition)
+            self._mv = (np.empty(N, np.int64), np.empty(N), np.empty((M, nch, G1, 4)), np.empty((M, G1 - 1, 5)),
+                        np.empty((q, N)), np.empty((P, N)), np.empty((3, nch, N)), np.empty((2, N)), self._buf2,
+                        np.empty(N, np.uint8))
         else:
             self._mv = (np.empty(N, np.int64), np.empty((N, q)), np.empty((N, P)), np.empty((3, nch, N)),
                         np.empty((2, N)), self._buf2, np.empty(N, np.uint8))
@@ -980,6 +995,7 @@ class TerrainFilter:
         self._g = g if self._asc else g[::-1]
         self._dir = 1.0 if self._asc else -1.0
         self.ess = float(N)
+        self._spare_arrays = None  # gathers write there, then swap (allocated at the first)
         self._unsorted = False
         self._step = np.empty(q)
         self.n_samples = 0
@@ -1057,7 +1073,8 @@ class TerrainFilter:
     def resample(self) -> None:
         """Resample and (``move_sweeps`` > 0) rejuvenate by Metropolis-Hastings moves."""
         self.n_resamples += 1
-        _nb_resample(self.mi, self.U, self.Zt, self.S, self.logml, self.ref, self.kpost, self._idx, self._buf)
+        _nb_resample(self._state, self._spare, self.ref, self._idx, self._buf)
+        self._swap()
         if self.move_sweeps:
             # random-walk scale from the spread of the (now equally weighted) conditions
             step = self._step
@@ -1081,9 +1098,26 @@ class TerrainFilter:
         """Sort the particles by medium if the runs of equal medium got short."""
         self._unsorted = False
         if _nb_runs(self.mi) > 4 * len(self.model.media):
-            _nb_sort(self.mi, self.U, self.Zt, self.S, self.logml, self.kpost, self._idx, self._buf,
-                     len(self.model.media))
+            _nb_sort(self._state, self._spare, self._idx, len(self.model.media))
+            self._swap()
             self.ref[:] = self.logml  # (the weights are equal after a move)
+
+    @property
+    def _state(self) -> tuple:
+        """The per-particle arrays (reordered together by resampling and sorting)."""
+        return self.mi, self.U, self.Zt, self.S, self.logml, self.kpost
+
+    @property
+    def _spare(self) -> tuple:
+        if self._spare_arrays is None:
+            self._spare_arrays = tuple(np.empty_like(a) for a in self._state)
+        return self._spare_arrays
+
+    def _swap(self) -> None:
+        """Make the spare arrays (just written by a gather) the state, and the state spare."""
+        spare = self._state
+        self.mi, self.U, self.Zt, self.S, self.logml, self.kpost = self._spare
+        self._spare_arrays = spare
 
     # -------------------------------------------------------------- posterior summaries
     @property
