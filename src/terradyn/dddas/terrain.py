@@ -413,6 +413,15 @@ def _block(m, obs, no, ys, rows, wts, Zt, S, der, pk, mk, kpost, lmp, ar):  # pr
         ar[i] = a / pk
 
 
+@njit(cache=True, inline="always")
+def _run_end(mi, s):  # pragma: no cover - compiled
+    """End (exclusive) of the run of equal medium that starts at s."""
+    e = s + 1
+    while e < mi.shape[0] and mi[e] == mi[s]:
+        e += 1
+    return e
+
+
 @njit(cache=True, fastmath=_FAST)
 def _nb_assimilate(k0, f, ys, noise2, R, RES2, Q, q1, r, n1, y1, yy, logc, der, pk, mk, pb,
                    mi, Zt, S, logml, ref, kpost, rows, wts, buf2):  # pragma: no cover - compiled
@@ -456,9 +465,7 @@ def _nb_assimilate(k0, f, ys, noise2, R, RES2, Q, q1, r, n1, y1, yy, logc, der, 
     s = 0
     while s < N:
         m = mi[s]
-        e = s + 1
-        while e < N and mi[e] == m:
-            e += 1
+        e = _run_end(mi, s)
         _block(m, obs, no, ys, rows, wts, Zt[:, s:e], S[:, :, s:e], der, pk, mk, kpost[:, s:e], lmp[s:e], ar[s:e])
         s = e
     return _finish(lmp, ar, logml, ref)
@@ -565,6 +572,20 @@ def _nb_resample(src, dst, ref, idx, buf):  # pragma: no cover - compiled
         ref[i] = new[i]
 
 
+@njit(cache=True, inline="always")
+def _take(i, Sp, S, sums, lmp, logml, kp, kpost):  # pragma: no cover - compiled
+    """Particle i takes its accepted proposal's running sums (if ``sums``), log marginal
+    likelihood and k posterior."""
+    if sums:
+        for c in range(S.shape[1]):
+            S[0, c, i] = Sp[0, c, i]
+            S[1, c, i] = Sp[1, c, i]
+            S[2, c, i] = Sp[2, c, i]
+    logml[i] = lmp[i]
+    kpost[0, i] = kp[0, i]
+    kpost[1, i] = kp[1, i]
+
+
 @njit(cache=True, fastmath=_FAST)
 def _nb_move_per_particle(mi, U, Zt, S, logml, ref, kpost, tables, Q, q1, r, der, pk, mk, step, p_jump, seed,
                           mp, Up, Zp, Sp, kp, buf2, acc):  # pragma: no cover - compiled
@@ -646,13 +667,7 @@ def _nb_move_per_particle(mi, U, Zt, S, logml, ref, kpost, tables, Q, q1, r, der
                 U[i, j] = Up[i, j]
             for p in range(P):
                 Zt[p, i] = Zp[i, p]
-            for c in range(nch):
-                S[0, c, i] = Sp[0, c, i]
-                S[1, c, i] = Sp[1, c, i]
-                S[2, c, i] = Sp[2, c, i]
-            logml[i] = lmp[i]
-            kpost[0, i] = kp[0, i]
-            kpost[1, i] = kp[1, i]
+            _take(i, Sp, S, True, lmp, logml, kp, kpost)
     for i in range(N):
         ref[i] = logml[i]
     return n_acc / N
@@ -853,13 +868,7 @@ def _run_move(m, m2, base, seed, U, Zt, S, logml, kpost, tables, Q, q1, r, der, 
             else:
                 for p in range(P):
                     Zt[p, i] = Zp[p, i]
-                for c in range(nch):
-                    S[0, c, i] = Sp[0, c, i]
-                    S[1, c, i] = Sp[1, c, i]
-                    S[2, c, i] = Sp[2, c, i]
-            logml[i] = lmp[i]
-            kpost[0, i] = kp[0, i]
-            kpost[1, i] = kp[1, i]
+            _take(i, Sp, S, G2 > 1, lmp, logml, kp, kpost)
     return n_acc
 
 
@@ -888,9 +897,7 @@ def _nb_move(mi, U, Zt, S, logml, ref, kpost, tables, Q, q1, r, der, pk, mk, ste
     s = 0
     while s < N:
         m = mi0[s]
-        e = s + 1
-        while e < N and mi0[e] == m:
-            e += 1
+        e = _run_end(mi0, s)
         m2 = (shift - m) % M
         n_acc += _run_move(m, m2, s, seed, U[s:e], Zt[:, s:e], S[:, :, s:e], logml[s:e], kpost[:, s:e], tables,
                            Q, q1, r, der, pk, mk, amp, p_jump, nodes, cq, jf[s:e], Up[:, s:e], Zp[:, s:e],
