@@ -11,7 +11,10 @@ All filters assimilate the same RFT trials of the flat leg (Fx, Fz, torque at 5 
 * ``terrain_per_particle``: the same filter with the previous, scalar move kernel
   (``move_kernel="per-particle"``): the terrain filter as it was before the vectorised move.
 A step = everything the filter does for one sample, including any resampling and MH move.
-Targets (issue 13): terrain mean <= 200 us, p99 <= 1 ms on the 2 cores.
+Targets (issue 13): terrain mean <= 200 us, p99 <= 1 ms on the 2 cores. Each load (idle, two
+busy processes) runs the same trials three times: the first run's statistics are what a
+controller sees on this shared machine; the per-step minimum over the three (same seeds, same
+computation) removes the pre-emptions by other jobs and measures the step's own cost.
 
 Usage: python benchmarks/bench_dddas_terrain.py [--quick]  (writes benchmarks/results/dddas_terrain.json)
 """
@@ -36,6 +39,7 @@ from bench_threading import hogs  # noqa: E402  (the same two busy processes)
 QUICK = "--quick" in sys.argv
 N = 5000
 TRIALS = 3 if QUICK else 10
+REPEATS = 1 if QUICK else 3  # runs of the same trials; the per-step minimum removes pre-emptions
 
 
 def stats(t):
@@ -69,7 +73,32 @@ def run(model, lin, trials):
         n_res_pp += fpp.n_resamples
     return {"terrain": stats(t_new) | {"resample_fraction": n_res / len(t_new)},
             "terrain_per_particle": stats(t_pp) | {"resample_fraction": n_res_pp / len(t_pp)},
-            "present": stats(t_old) | {"D": int(len(lin.mean))}}
+            "present": stats(t_old) | {"D": int(len(lin.mean))},
+            "_steps": {"terrain": t_new, "terrain_per_particle": t_pp, "present": t_old}}
+
+
+def min_of(runs):
+    """Per step, the minimum over repeated runs of the same trials (same seeds, so the same
+    resamplings and moves): the step's cost with the pre-emptions by other jobs removed."""
+    out = {}
+    for k in runs[0]["_steps"]:
+        t = np.min([r["_steps"][k] for r in runs], axis=0)
+        out[k] = stats(t)
+    out["terrain"]["resample_fraction"] = runs[0]["terrain"]["resample_fraction"]
+    out["present"]["D"] = runs[0]["present"]["D"]
+    return out
+
+
+def report(label, r):
+    a, b, c = r["terrain"], r["present"], r["terrain_per_particle"]
+    print(f"{label}: terrain mean {a['mean_us']:.0f} us p50 {a['p50_us']:.0f} p99 {a['p99_us']:.0f} "
+          f"max {a['max_us']:.0f} (resampled in {100 * a['resample_fraction']:.1f} % of steps); "
+          f"terrain with the per-particle move mean {c['mean_us']:.0f} p50 {c['p50_us']:.0f} "
+          f"p99 {c['p99_us']:.0f} max {c['max_us']:.0f}, ratio p99 x{c['p99_us'] / a['p99_us']:.2f}; "
+          f"present (D={b['D']}, 3 scalar updates) mean {b['mean_us']:.0f} p50 {b['p50_us']:.0f} "
+          f"p99 {b['p99_us']:.0f}; ratio terrain/present mean x{a['mean_us'] / b['mean_us']:.2f}, "
+          f"p99 x{a['p99_us'] / b['p99_us']:.2f}; target (mean <= 200, p99 <= 1000 us): "
+          f"{'MET' if a['mean_us'] <= 200 and a['p99_us'] <= 1000 else 'NOT MET'}", flush=True)
 
 
 def parts(model, tr, repeats=200, move_kernel="vector"):
@@ -129,23 +158,18 @@ def main():
         procs = hogs(busy)
         try:
             time.sleep(0.5)
-            r = run(model, lin, trials)
+            reps = [run(model, lin, trials) for _ in range(REPEATS)]
         finally:
             for p in procs:
                 p.kill()
                 p.wait()
+        r = {k: v for k, v in reps[0].items() if k != "_steps"}
         r["busy_processes"] = busy
         r["load_average"] = os.getloadavg()[0]
+        r["min_of_repeats"] = min_of(reps) | {"repeats": REPEATS}
         rows.append(r)
-        a, b, c = r["terrain"], r["present"], r["terrain_per_particle"]
-        print(f"busy={busy}: terrain mean {a['mean_us']:.0f} us p50 {a['p50_us']:.0f} p99 {a['p99_us']:.0f} "
-              f"max {a['max_us']:.0f} (resampled in {100 * a['resample_fraction']:.1f} % of steps); "
-              f"terrain with the per-particle move mean {c['mean_us']:.0f} p50 {c['p50_us']:.0f} "
-              f"p99 {c['p99_us']:.0f} max {c['max_us']:.0f}, ratio p99 x{c['p99_us'] / a['p99_us']:.2f}; "
-              f"present (D={b['D']}, 3 scalar updates) mean {b['mean_us']:.0f} p50 {b['p50_us']:.0f} "
-              f"p99 {b['p99_us']:.0f}; ratio terrain/present mean x{a['mean_us'] / b['mean_us']:.2f}, "
-              f"p99 x{a['p99_us'] / b['p99_us']:.2f}; target (mean <= 200, p99 <= 1000 us): "
-              f"{'MET' if a['mean_us'] <= 200 and a['p99_us'] <= 1000 else 'NOT MET'}")
+        report(f"busy={busy}, first run", r)
+        report(f"busy={busy}, per-step minimum of {REPEATS} runs", r["min_of_repeats"])
     out = Path(__file__).parent / "results" / "dddas_terrain.json"
     out.parent.mkdir(exist_ok=True)
     out.write_text(json.dumps({"machine": platform.platform(), "cpus": os.cpu_count(), "python": platform.python_version(),
