@@ -1086,7 +1086,10 @@ class TerrainFilter:
             # random-walk scale from the spread of the (now equally weighted) conditions
             step = self._step
             _nb_step(self.U, self.step, step)
-            for _ in range(self.move_sweeps):
+            for sweep in range(self.move_sweeps):
+                if sweep and self.move_kernel == "vector" and self._unsorted:
+                    self._sort()  # (the vectorised sweep works on runs of equal medium)
+                self._unsorted = self.p_jump > 0 and len(self.model.media) > 1
                 seed = np.uint32(self.rng.integers(0, 2 ** 32, dtype=np.uint64))
                 args = (self.mi, self.U, self.Zt, self.S, self.logml, self.ref, self.kpost, self.model.table,
                         self.Q, self.q1, self.r, self.der, self.pk, self.mk, step, self.p_jump)
@@ -1098,7 +1101,6 @@ class TerrainFilter:
                 self.acceptance.append(float(acc))
             # medium jumps break the runs of equal medium: sorted again before the next update
             # (deferred, so that a step that resamples does not also pay for the sort)
-            self._unsorted = self.p_jump > 0 and len(self.model.media) > 1
         self.ess = float(self.n)
 
     def _sort(self) -> None:
