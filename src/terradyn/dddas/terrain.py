@@ -573,17 +573,32 @@ def _nb_resample(src, dst, ref, idx, buf):  # pragma: no cover - compiled
 
 
 @njit(cache=True, inline="always")
-def _take(i, Sp, S, sums, lmp, logml, kp, kpost):  # pragma: no cover - compiled
-    """Particle i takes its accepted proposal's running sums (if ``sums``), log marginal
-    likelihood and k posterior."""
-    if sums:
-        for c in range(S.shape[1]):
-            S[0, c, i] = Sp[0, c, i]
-            S[1, c, i] = Sp[1, c, i]
-            S[2, c, i] = Sp[2, c, i]
+def _take(i, lmp, logml, kp, kpost):  # pragma: no cover - compiled
+    """Particle i takes its accepted proposal's log marginal likelihood and k posterior."""
     logml[i] = lmp[i]
     kpost[0, i] = kp[0, i]
     kpost[1, i] = kp[1, i]
+
+
+@njit(cache=True)
+def _effective(Q, q1, r, der, qe, re):  # pragma: no cover - compiled
+    """All channels in one quadratic form: with the biases integrated out, the k posterior of
+    coefficients z has precision pk + z qe z and precision x mean pk mk + re . z, where per
+    medium qe = sum_c (Q_c - q1_c q1_c^T / d_c) and re = sum_c (r_c - q1_c y1_c / d_c)
+    (der as in :func:`_derive`)."""
+    M, nch, P, _ = Q.shape
+    for m in range(M):
+        for p in range(P):
+            re[m, p] = 0.0
+            for p2 in range(P):
+                qe[m, p, p2] = 0.0
+        for c in range(nch):
+            d = der[m, c]
+            y = der[m, nch + c]
+            for p in range(P):
+                re[m, p] += r[m, c, p] - y * q1[m, c, p]
+                for p2 in range(P):
+                    qe[m, p, p2] += Q[m, c, p, p2] - d * q1[m, c, p] * q1[m, c, p2]
 
 
 @njit(cache=True, fastmath=_FAST)
@@ -667,7 +682,10 @@ def _nb_move_per_particle(mi, U, Zt, S, logml, ref, kpost, tables, Q, q1, r, der
                 U[i, j] = Up[i, j]
             for p in range(P):
                 Zt[p, i] = Zp[i, p]
-            _take(i, Sp, S, True, lmp, logml, kp, kpost)
+            for c in range(nch):
+                for k in range(3):
+                    S[k, c, i] = Sp[k, c, i]
+            _take(i, lmp, logml, kp, kpost)
     for i in range(N):
         ref[i] = logml[i]
     return n_acc / N
@@ -737,18 +755,21 @@ def _node_stats(tables, Q, q1, r, der, pk, mk, nodes, cq):  # pragma: no cover -
 
 @njit(cache=True, fastmath=_FAST)
 def _run_move(m, m2, base, seed, U, Zt, S, logml, kpost, tables, Q, q1, r, der, pk, mk, amp, p_jump, nodes, cq,
-              jf, Up, Zp, Sp, kp, lmp, ar, acc, mi):  # pragma: no cover - compiled
+              qe, re, jf, Up, Zp, kp, lmp, ar, acc, mi, cidx):  # pragma: no cover - compiled
     """The Metropolis-Hastings sweep over one run of particles of medium m (views, so every
     loop starts at 0 and vectorises): proposals stay in m or (with probability p_jump) go to
     m2; coefficients and statistics of the two media are blended by the 0/1 mask jf, so the
     loops over particles are branch-free. Particles are counted from ``base`` for the random
     numbers. With one condition (G2 = 1) the k posterior's precision and mean come from the
     per-cell quadratics ``cq`` (see :func:`_node_stats`) in O(1) per particle, and the
-    coefficients and running sums are interpolated for the accepted proposals only. Returns
-    the number of accepted proposals."""
+    coefficients and running sums are interpolated for the accepted proposals only; with two,
+    from one quadratic form over all channels (``qe``, ``re``: :func:`_effective`), O(D^2) per
+    particle, the running sums again for the accepted proposals only (compacted, vectorised).
+    cidx: int scratch (the run's part of mi0, which the caller has read). Returns the number of
+    accepted proposals."""
     n, q = U.shape
     G1, G2, P = tables.shape[1], tables.shape[2], tables.shape[3]
-    nch = Sp.shape[1]
+    nch = S.shape[1]
     dm = m2 != m and p_jump > 0.0
     for i in range(n):
         b = np.uint32(base + i) * np.uint32(4)
@@ -780,55 +801,34 @@ def _run_move(m, m2, base, seed, U, Zt, S, logml, kpost, tables, Q, q1, r, der, 
             x = min(max(Up[0, i], 0.0), 1.0) * (G1 - 1)
             i0 = min(int(x), G1 - 2)
             f0 = x - i0
-            i1, f1 = 0, 0.0
-            if G2 > 1:
-                y = min(max(Up[1, i], 0.0), 1.0) * (G2 - 1)
-                i1 = min(int(y), G2 - 2)
-                f1 = y - i1
+            y = min(max(Up[1, i], 0.0), 1.0) * (G2 - 1)
+            i1 = min(int(y), G2 - 2)
+            f1 = y - i1
             mn = m2 if jf[i] > 0.5 else m
             for p in range(P):
-                if G2 > 1:
-                    v = ((1 - f0) * ((1 - f1) * tables[mn, i0, i1, p] + f1 * tables[mn, i0, i1 + 1, p])
-                         + f0 * ((1 - f1) * tables[mn, i0 + 1, i1, p] + f1 * tables[mn, i0 + 1, i1 + 1, p]))
-                else:
-                    v = (1 - f0) * tables[mn, i0, 0, p] + f0 * tables[mn, i0 + 1, 0, p]
-                Zp[p, i] = v
-        # full-history sufficient statistics of the proposals, channel by channel
+                Zp[p, i] = ((1 - f0) * ((1 - f1) * tables[mn, i0, i1, p] + f1 * tables[mn, i0, i1 + 1, p])
+                            + f0 * ((1 - f1) * tables[mn, i0 + 1, i1, p] + f1 * tables[mn, i0 + 1, i1 + 1, p]))
+        # the k posterior's precision a = pk + z qe z and a E[k] = pk mk + re . z (all channels
+        # at once, see :func:`_effective`); the running sums for the accepted proposals only
         for i in range(n):
-            kp0[i] = pk          # precision of k
+            kp0[i] = pk
             ek[i] = pk * mk
         t = kp1
-        for c in range(nch):
-            s0 = Sp[0, c]
-            s1 = Sp[1, c]
-            s2 = Sp[2, c]
+        for p in range(P):
             for i in range(n):
-                s0[i] = 0.0
-                s1[i] = 0.0
-                s2[i] = 0.0
-            for p in range(P):
+                t[i] = 0.0
+            for p2 in range(P):
+                a = qe[m, p, p2]
+                d = qe[m2, p, p2] - a
+                zp2 = Zp[p2]
                 for i in range(n):
-                    t[i] = 0.0
-                for p2 in range(P):
-                    a = Q[m, c, p, p2]
-                    d = Q[m2, c, p, p2] - a
-                    zp2 = Zp[p2]
-                    for i in range(n):
-                        t[i] += (a + d * jf[i]) * zp2[i]
-                qa, qd = q1[m, c, p], q1[m2, c, p] - q1[m, c, p]
-                ra, rd = r[m, c, p], r[m2, c, p] - r[m, c, p]
-                zp = Zp[p]
-                for i in range(n):
-                    z = zp[i]
-                    s0[i] += z * t[i]
-                    s1[i] += (qa + qd * jf[i]) * z
-                    s2[i] += (ra + rd * jf[i]) * z
-            da, dd = der[m, c], der[m2, c] - der[m, c]
-            ya, yd = der[m, nch + c], der[m2, nch + c] - der[m, nch + c]
+                    t[i] += (a + d * jf[i]) * zp2[i]
+            ra, rd = re[m, p], re[m2, p] - re[m, p]
+            zp = Zp[p]
             for i in range(n):
-                j = jf[i]
-                kp0[i] += s0[i] - s1[i] * s1[i] * (da + dd * j)
-                ek[i] += s2[i] - s1[i] * (ya + yd * j)
+                z = zp[i]
+                kp0[i] += z * t[i]
+                ek[i] += (ra + rd * jf[i]) * z
     ca, cd = der[m, 2 * nch], der[m2, 2 * nch] - der[m, 2 * nch]
     seed2 = np.uint32(seed ^ np.uint32(0x5BD1E995))
     for i in range(n):  # k posterior; ar <- 1 / (a / pk) (>= 1 clamped; 0 marks out of the box)
@@ -868,13 +868,53 @@ def _run_move(m, m2, base, seed, U, Zt, S, logml, kpost, tables, Q, q1, r, der, 
             else:
                 for p in range(P):
                     Zt[p, i] = Zp[p, i]
-            _take(i, Sp, S, G2 > 1, lmp, logml, kp, kpost)
+                cidx[n_acc - 1] = i
+            _take(i, lmp, logml, kp, kpost)
+    if G2 > 1 and n_acc > 0:
+        # running sums of the accepted proposals: compacted (k <= i, in order), then
+        # vectorised over them channel by channel, and scattered back
+        for k in range(n_acc):
+            i = cidx[k]
+            jf[k] = jf[i]
+            for p in range(P):
+                Zp[p, k] = Zp[p, i]
+        t = kp[0]
+        s0 = kp[1]
+        s1 = ar
+        s2 = lmp
+        for c in range(nch):
+            for k in range(n_acc):
+                s0[k] = 0.0
+                s1[k] = 0.0
+                s2[k] = 0.0
+            for p in range(P):
+                for k in range(n_acc):
+                    t[k] = 0.0
+                for p2 in range(P):
+                    a = Q[m, c, p, p2]
+                    d = Q[m2, c, p, p2] - a
+                    zp2 = Zp[p2]
+                    for k in range(n_acc):
+                        t[k] += (a + d * jf[k]) * zp2[k]
+                qa, qd = q1[m, c, p], q1[m2, c, p] - q1[m, c, p]
+                ra, rd = r[m, c, p], r[m2, c, p] - r[m, c, p]
+                zp = Zp[p]
+                for k in range(n_acc):
+                    z = zp[k]
+                    s0[k] += z * t[k]
+                    s1[k] += (qa + qd * jf[k]) * z
+                    s2[k] += (ra + rd * jf[k]) * z
+            for k in range(n_acc):
+                i = cidx[k]
+                S[0, c, i] = s0[k]
+                S[1, c, i] = s1[k]
+                S[2, c, i] = s2[k]
     return n_acc
 
 
 @njit(cache=True)
 def _nb_move(mi, U, Zt, S, logml, ref, kpost, tables, Q, q1, r, der, pk, mk, step, p_jump, shift, seed,
-             mi0, jf, nodes, cq, Up, Zp, Sp, kp, buf2, acc):  # pragma: no cover - compiled
+             mi0, jf, nodes, cq, qe, re, Up, Zp, kp, buf2, acc):  # pragma: no cover - compiled
     """One random-walk Metropolis-Hastings sweep on (medium, u in [0, 1]^q) targeting the
     posterior given all samples so far (uniform prior on the box and the media), vectorised
     over runs of equal medium. Proposals move u by a uniform step of std ``step`` per input
@@ -882,12 +922,14 @@ def _nb_move(mi, U, Zt, S, logml, ref, kpost, tables, Q, q1, r, der, pk, mk, ste
     involution (so the proposal is symmetric; ``shift`` is drawn uniformly in 0..M-1 per
     sweep, which makes the target uniform over the media). Random numbers from the counter
     hash seeded by ``seed``. The full-history likelihood comes from the sufficient
-    statistics Q (M, nch, P, P), q1 and r (M, nch, P). mi0, jf, nodes, cq, Up, Zp, Sp, kp,
+    statistics Q (M, nch, P, P), q1 and r (M, nch, P). mi0, jf, nodes, cq, qe, re, Up, Zp, kp,
     buf2, acc: scratch. Returns the acceptance rate; the weights become equal (ref = logml)."""
     N, q = U.shape
     M = tables.shape[0]
     if tables.shape[2] == 1:
         _node_stats(tables, Q, q1, r, der, pk, mk, nodes, cq)
+    else:
+        _effective(Q, q1, r, der, qe, re)
     amp = np.empty(q)
     for j in range(q):
         amp[j] = step[j] * math.sqrt(12.0)
@@ -900,9 +942,8 @@ def _nb_move(mi, U, Zt, S, logml, ref, kpost, tables, Q, q1, r, der, pk, mk, ste
         e = _run_end(mi0, s)
         m2 = (shift - m) % M
         n_acc += _run_move(m, m2, s, seed, U[s:e], Zt[:, s:e], S[:, :, s:e], logml[s:e], kpost[:, s:e], tables,
-                           Q, q1, r, der, pk, mk, amp, p_jump, nodes, cq, jf[s:e], Up[:, s:e], Zp[:, s:e],
-                           Sp[:, :, s:e],
-                           kp[:, s:e], buf2[0, s:e], buf2[1, s:e], acc[s:e], mi[s:e])
+                           Q, q1, r, der, pk, mk, amp, p_jump, nodes, cq, qe, re, jf[s:e], Up[:, s:e], Zp[:, s:e],
+                           kp[:, s:e], buf2[0, s:e], buf2[1, s:e], acc[s:e], mi[s:e], mi0[s:e])
         s = e
     for i in range(N):
         ref[i] = logml[i]
@@ -992,8 +1033,8 @@ class TerrainFilter:
             G1, G2 = model.table.shape[1:3]
             G1 = G1 if G2 == 1 else 2  # (node tables only for one condition)
             self._mv = (np.empty(N, np.int64), np.empty(N), np.empty((M, nch, G1, 4)), np.empty((M, G1 - 1, 5)),
-                        np.empty((q, N)), np.empty((P, N)), np.empty((3, nch, N)), np.empty((2, N)), self._buf2,
-                        np.empty(N, np.uint8))
+                        np.empty((M, P, P)), np.empty((M, P)), np.empty((q, N)), np.empty((P, N)), np.empty((2, N)),
+                        self._buf2, np.empty(N, np.uint8))
         else:
             self._mv = (np.empty(N, np.int64), np.empty((N, q)), np.empty((N, P)), np.empty((3, nch, N)),
                         np.empty((2, N)), self._buf2, np.empty(N, np.uint8))
