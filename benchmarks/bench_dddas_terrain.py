@@ -1,7 +1,7 @@
 """Terrain filter step latency (N = 5000, condition parameters in the state) side by side with
 the present coefficient particle filter, idle and with two busy processes.
 
-All filters assimilate the same RFT trials of the flat leg (Fx, Fz, torque at 5 % noise,
+All filters assimilate the same RFT trials of the flat leg (or --leg; Fx, Fz, torque at 5 % noise,
 181 samples over the stance, a fresh filter per trial), in the same run:
 * ``present``: terradyn.dddas.filter.ParticleFilter (numba) over the coefficients of one
   HOSVD basis pooled over all media (D coefficients), three scalar updates per sample;
@@ -16,7 +16,9 @@ busy processes) runs the same trials three times: the first run's statistics are
 controller sees on this shared machine; the per-step minimum over the three (same seeds, same
 computation) removes the pre-emptions by other jobs and measures the step's own cost.
 
-Usage: python benchmarks/bench_dddas_terrain.py [--quick]  (writes benchmarks/results/dddas_terrain.json)
+Usage: python benchmarks/bench_dddas_terrain.py [--quick] [--leg foot]  (writes
+benchmarks/results/dddas_terrain.json; with --leg LEG other than flat, dddas_terrain_LEG.json:
+the foot has two conditions, length and sinkage, and 61 samples per stroke)
 """
 from __future__ import annotations
 
@@ -37,6 +39,7 @@ sys.path.insert(0, str(Path(__file__).parent))
 from bench_threading import hogs  # noqa: E402  (the same two busy processes)
 
 QUICK = "--quick" in sys.argv
+LEG = sys.argv[sys.argv.index("--leg") + 1] if "--leg" in sys.argv else "flat"
 N = 5000
 TRIALS = 3 if QUICK else 10
 REPEATS = 1 if QUICK else 3  # runs of the same trials; the per-step minimum removes pre-emptions
@@ -144,10 +147,10 @@ def main():
     print(f"machine: {platform.platform()}, {os.cpu_count()} CPUs, load average {load:.2f} before the run "
           "(the 2 cores are shared with other developers' work: 'idle' means no hogs of ours)")
     warmup()
-    model = TerrainModel.from_rft("flat")
-    lin = _pooled("flat", model, len(model.theta))
+    model = TerrainModel.from_rft(LEG)
+    lin = _pooled(LEG, model, len(model.theta))
     rng = np.random.default_rng(0)
-    trials = [make_trial("flat", model, rng) for _ in range(TRIALS)]
+    trials = [make_trial(LEG, model, rng) for _ in range(TRIALS)]
     run(model, lin, trials[:1])  # compile / load the kernels
     pt = {kern: parts(model, trials[0], move_kernel=kern) for kern in ("vector", "per-particle")}
     for kern, p in pt.items():
@@ -170,10 +173,10 @@ def main():
         rows.append(r)
         report(f"busy={busy}, first run", r)
         report(f"busy={busy}, per-step minimum of {REPEATS} runs", r["min_of_repeats"])
-    out = Path(__file__).parent / "results" / "dddas_terrain.json"
+    out = Path(__file__).parent / "results" / ("dddas_terrain.json" if LEG == "flat" else f"dddas_terrain_{LEG}.json")
     out.parent.mkdir(exist_ok=True)
     out.write_text(json.dumps({"machine": platform.platform(), "cpus": os.cpu_count(), "python": platform.python_version(),
-                               "quick": QUICK, "particles": N, "trials": TRIALS, "samples_per_trial": len(trials[0]["theta"]),
+                               "quick": QUICK, "leg": LEG, "particles": N, "trials": TRIALS, "samples_per_trial": len(trials[0]["theta"]),
                                "load_average_before": load, "runs": rows, "parts": pt,
                                "when": time.strftime("%Y-%m-%dT%H:%M:%SZ", time.gmtime())}, indent=2))
     print(f"wrote {out}")
