@@ -104,40 +104,43 @@ def report(label, r):
           f"{'MET' if a['mean_us'] <= 200 and a['p99_us'] <= 1000 else 'NOT MET'}", flush=True)
 
 
-def parts(model, tr, repeats=200, move_kernel="vector"):
+def parts(model, tr, repeats=200, kernels=("vector", "per-particle")):
     """Minimum and median times (us) of the parts of a step, each repeated on one filter
-    state 40 samples into a trial: the update without resampling, the systematic
-    resampling, resampling + one Metropolis-Hastings sweep, and the sort by medium that the
-    next update does after a move (the particles are sorted again, untimed, before each
-    repeat). Minima estimate an unloaded machine."""
+    state 40 samples into a trial, per move kernel: the update without resampling, the
+    systematic resampling, resampling + one Metropolis-Hastings sweep, and the sort by medium
+    that the next update does after a move (the particles are sorted again, untimed, before
+    each repeat). The kernels' repeats alternate, so both see the same load. Minima estimate
+    an unloaded machine."""
     chans = [Channel(n, w, sd, sd) for n, w, sd in tr["channels"]]
-    f = TerrainFilter(model, chans, n_particles=N, seed=0, ess_threshold=0.0, move_kernel=move_kernel)
-    for i in range(40):
-        f.update(tr["theta"][i], {n: float(tr["obs"][n][i]) for n in tr["obs"]})
     th, vals = tr["theta"][40], {n: float(tr["obs"][n][40]) for n in tr["obs"]}
-    f.check_theta = lambda t: float(t)  # repeat one sample
+    fs = {}
+    for kern in kernels:
+        f = TerrainFilter(model, chans, n_particles=N, seed=0, ess_threshold=0.0, move_kernel=kern)
+        for i in range(40):
+            f.update(tr["theta"][i], {n: float(tr["obs"][n][i]) for n in tr["obs"]})
+        f.check_theta = lambda t: float(t)  # repeat one sample
+        fs[kern] = f
 
-    def clock(fn, setup=lambda: None):
-        t = []
+    def clock(fn, setup=lambda f: None, sweeps=1):
+        t = {k: [] for k in fs}
         for _ in range(repeats):
-            setup()
-            t0 = time.perf_counter()
-            fn()
-            t.append(time.perf_counter() - t0)
-        t = np.array(t) * 1e6
-        return {"min_us": float(t.min()), "p50_us": float(np.median(t))}
+            for k, f in fs.items():
+                f.move_sweeps = sweeps
+                setup(f)
+                t0 = time.perf_counter()
+                fn(f)
+                t[k].append(time.perf_counter() - t0)
+        return {k: {"min_us": float(1e6 * np.min(v)), "p50_us": float(1e6 * np.median(v))} for k, v in t.items()}
 
-    def unsort():  # a move, untimed, so that the sort has work to do
+    def unsort(f):  # a move, untimed, so that the sort has work to do
         f.resample()
         f._unsorted = True
 
-    out = {"update": clock(lambda: f.update(th, vals))}
-    f.move_sweeps = 0
-    out["resample"] = clock(f.resample)
-    f.move_sweeps = 1
-    out["resample_and_move"] = clock(f.resample, f._sort)
-    out["sort_after_move"] = clock(f._sort, unsort)
-    return out
+    res = {"update": clock(lambda f: f.update(th, vals)),
+           "resample": clock(lambda f: f.resample(), sweeps=0),
+           "resample_and_move": clock(lambda f: f.resample(), lambda f: f._sort()),
+           "sort_after_move": clock(lambda f: f._sort(), unsort)}
+    return {k: {part: v[k] for part, v in res.items()} for k in fs}
 
 
 
@@ -152,7 +155,7 @@ def main():
     rng = np.random.default_rng(0)
     trials = [make_trial(LEG, model, rng) for _ in range(TRIALS)]
     run(model, lin, trials[:1])  # compile / load the kernels
-    pt = {kern: parts(model, trials[0], move_kernel=kern) for kern in ("vector", "per-particle")}
+    pt = parts(model, trials[0])
     for kern, p in pt.items():
         print(f"parts of a step, {kern} move (min / median us over 200 repeats): " + "; ".join(
             f"{k} {v['min_us']:.0f} / {v['p50_us']:.0f}" for k, v in p.items()))
