@@ -102,18 +102,70 @@ def _grid_posterior(model, chans, samples, k_std):
     return w.sum(1) / w.sum()
 
 
-def test_posterior_matches_a_brute_force_grid(model):
+@pytest.mark.parametrize("kernel", T.MOVE_KERNELS)
+def test_posterior_matches_a_brute_force_grid(model, kernel):
     """Resample-move targets the right posterior: its medium probabilities agree with an exact
-    grid computation on ambiguous data (few samples, 20 % noise)."""
+    grid computation on ambiguous data (few samples, 20 % noise), with either move kernel."""
     chans, samples, _ = trial(model, "poppy LP", h=2.5, k=1.0, noise=0.2, seed=3, n=18)
     ref = _grid_posterior(model, chans, samples, 0.1)
     assert 0.05 < ref.max() < 0.95  # not degenerate: the test can tell a wrong answer
-    f = T.TerrainFilter(model, chans, n_particles=5000, seed=2)
+    f = T.TerrainFilter(model, chans, n_particles=5000, seed=2, move_kernel=kernel)
     for th, v in samples:
         f.update(th, v)
     p = np.array(list(f.medium_probabilities().values()))
     assert f.n_resamples >= 1
     np.testing.assert_allclose(p, ref, atol=0.06)
+
+
+def _check_state_after_moves(model, chans, samples, kernel, sweeps=3):
+    """After resample-moves, every particle's coefficients, running sums and log marginal
+    likelihood equal those of a particle placed at its (medium, condition) that assimilated
+    every sample from the start (no moves): the move's sufficient-statistics shortcut
+    (and, with one condition, the exact node expansion) is the full-history likelihood."""
+    f = T.TerrainFilter(model, chans, n_particles=600, seed=4, move_kernel=kernel, ess_threshold=0.0)
+    for th, v in samples:
+        f.update(th, v)
+    f.move_sweeps = sweeps
+    f.resample()
+    assert sum(f.acceptance) > 0.0 and len(np.unique(f.mi)) > 1
+    ref = T.TerrainFilter(model, chans, n_particles=f.n, seed=0, ess_threshold=0.0, move_sweeps=0)
+    order = np.argsort(f.mi, kind="stable")
+    ref.mi[:] = f.mi[order]
+    ref.U[:] = f.U[order]
+    T._nb_table(model.table, ref.mi, ref.U, ref.Z)
+    np.testing.assert_allclose(f.Z[order], ref.Z, rtol=1e-9, atol=1e-12)
+    for th, v in samples:
+        ref.update(th, v)
+    np.testing.assert_allclose(f.S[:, :, order], ref.S, rtol=1e-7, atol=1e-9)
+    np.testing.assert_allclose(f.logml[order], ref.logml, rtol=1e-7, atol=1e-4)
+    np.testing.assert_allclose(f.kpost[:, order], ref.kpost, rtol=1e-7, atol=1e-12)
+
+
+@pytest.mark.parametrize("kernel", T.MOVE_KERNELS)
+def test_move_state_is_the_full_history_one(model, kernel):
+    chans, samples, _ = trial(model, "poppy LP", h=2.5, k=1.0, noise=0.2, seed=3, n=20)
+    _check_state_after_moves(model, chans, samples, kernel)
+
+
+def test_move_state_is_the_full_history_one_two_conditions():
+    """The same with two conditions (the foot: length and sinkage; bilinear table)."""
+    from terradyn.dddas import Surrogate
+
+    conds = {"length_cm": np.array([25.0, 30.0, 35.0]), "sinkage_cm": np.array([0.0, 0.5, 1.0])}
+    media = T.MEDIA[:2]
+    surs = {m: Surrogate(inputs=list(conds), components=T.COMPONENTS, energy=0.999, n_restarts=0).fit(
+        T.training_stack("foot", m, conds, 21)) for m in media}
+    fm = T.TerrainModel(surs, "foot", table_points=9)
+    ds = T.rft_forces("foot", media[1], {"length_cm": 28.0, "sinkage_cm": 0.4}, 1.0, 21)
+    rng = np.random.default_rng(0)
+    chans, obs = [], {}
+    for c in T.COMPONENTS:
+        sd = 0.2 * float(np.sqrt(np.mean(ds[c].values ** 2)))
+        chans.append(T.Channel(c, {c: 1.0}, sd, sd, T.COMPONENT_UNITS[c]))
+        obs[c] = ds[c].values + sd * rng.standard_normal(21)
+    samples = [(ds.theta.values[i], {c: obs[c][i] for c in obs}) for i in range(8)]
+    for kernel in T.MOVE_KERNELS:
+        _check_state_after_moves(fm, chans, samples, kernel)
 
 
 def test_move_rejuvenates_the_particles(model):
@@ -228,3 +280,22 @@ def test_forecast_study_small(model, monkeypatch, tmp_path):
     assert (tmp_path / "fc" / "forecast_mse.png").stat().st_size > 1000
     s = json.loads((tmp_path / "fc" / "summary.json").read_text())
     assert set(s["legs"]["flat"]["mse_mean"]) == set(FC.METHODS)
+    leg = s["legs"]["flat"]
+    # the hidden truth and the diagnostics of the Bayes ceiling are kept
+    assert np.isfinite(ds["true_hip_height_cm"]).all() and (ds["k_true"] > 0).all()
+    assert (ds["contact_samples"].sel(fraction=0.6) >= ds["contact_samples"].sel(fraction=0.3)).all()
+    conf = leg["confusion_grid"]
+    assert sum(sum(r.values()) for r in conf.values()) == ds.sizes["trial"]
+    correct = sum(conf[m][m] for m in conf) / ds.sizes["trial"]
+    assert correct == pytest.approx(leg["medium_correct_exact_bayes_grid"])
+    assert sum(b["trials"] for b in leg["identification_by_contact_samples"]) == ds.sizes["trial"]
+    assert set(leg["grid_over_oracle_by_fraction"]) == {0.3, 0.6} or set(leg["grid_over_oracle_by_fraction"]) == {"0.3", "0.6"}
+
+
+def test_in_contact_marks_the_samples_with_force():
+    from terradyn.dddas.forecast import in_contact
+
+    F = np.zeros((5, len(T.COMPONENTS)))
+    F[3:, T.COMPONENTS.index("Fz")] = [1.0, 2.0]
+    F[2, T.COMPONENTS.index("Fx")] = 0.001  # below 1 % of the maximum
+    assert in_contact(F).tolist() == [False, False, False, True, True]

@@ -317,9 +317,12 @@ def _register_terrain(dd: typer.Typer) -> None:
         s = summarise(ds)
         for name, r in s["legs"].items():
             tp, to = r["terrain_over"]["prior"], r["terrain_over"]["oracle"]
-            _err(f"{name} at 30 %: medium correct {100 * r['medium_correct']:.1f} %; forecast MSE terrain/prior "
-                 + ", ".join(f"{c} {v:.3f}" for c, v in tp.items()) + "; terrain/oracle "
-                 + ", ".join(f"{c} {v:.1f}" for c, v in to.items()))
+            go = r["grid_over_oracle_by_fraction"].get(s["fraction"], {})
+            _err(f"{name} at 30 %: medium correct {100 * r['medium_correct']:.1f} % (exact Bayes "
+                 f"{100 * r['medium_correct_exact_bayes_grid']:.1f} %); forecast MSE terrain/prior "
+                 + ", ".join(f"{c} {v:.3g}" for c, v in tp.items()) + "; terrain/oracle "
+                 + ", ".join(f"{c} {v:.1f}" for c, v in to.items()) + "; exact Bayes/oracle "
+                 + ", ".join(f"{c} {v:.1f}" for c, v in go.items()))
         _err(f"wrote {out}/forecast.nc, summary.json, forecast_mse.png, identification.png")
         sys.stdout.write(json.dumps(s, indent=2) + "\n")
 

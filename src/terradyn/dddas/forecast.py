@@ -113,6 +113,13 @@ def make_trial(leg: str, model: TerrainModel, rng: np.random.Generator, medium: 
             "truth": truth, "obs": obs, "channels": chans}
 
 
+def in_contact(truth: np.ndarray, level: float = 0.01) -> np.ndarray:
+    """(S,) True where the noise-free force magnitude exceeds ``level`` x its stroke maximum:
+    the samples that carry information about the terrain."""
+    mag = np.hypot(truth[:, COMPONENTS.index("Fx")], truth[:, COMPONENTS.index("Fz")])
+    return mag > level * max(float(mag.max()), 1e-300)
+
+
 def _naive(obs: dict, n: int, S: int, leg: str) -> np.ndarray:
     out = np.zeros((S, len(COMPONENTS)))
     chans = dict(sensor_channels(leg))
@@ -175,7 +182,8 @@ def run_trial(tr: dict, model: TerrainModel, lin: PooledLinear, fractions=FRACTI
         ident["map_grid"].append(max(pg, key=pg.get))
         z = filt.zeta_posterior()
         ident["zeta_mean"][fi], ident["zeta_lo"][fi], ident["zeta_hi"][fi] = z["mean"], z["lo"], z["hi"]
-    return {"mse": mse, "ident": ident, "step_us": np.array(t_steps) * 1e6, "resamples": filt.n_resamples}
+    return {"mse": mse, "ident": ident, "step_us": np.array(t_steps) * 1e6, "resamples": filt.n_resamples,
+            "contact": np.array([int(np.count_nonzero(in_contact(truth)[:cut])) for cut in cuts])}
 
 
 def forecast_study(out: str | Path | None = None, legs: Sequence[str] = LEG_KINDS, trials_per_medium: int = 20,
@@ -203,7 +211,8 @@ def forecast_study(out: str | Path | None = None, legs: Sequence[str] = LEG_KIND
     rng = np.random.default_rng(seed)
     n_t = len(MEDIA) * n_tr
     res = {k: [] for k in ("mse", "p_true", "correct", "p_true_grid", "correct_grid", "zeta_mean", "zeta_lo", "zeta_hi", "zeta_true", "medium",
-                           "step_us", "resamples")}
+                           "step_us", "resamples", "map", "map_grid", "contact", "k_true", "cond")}
+    cond_names = []
     t_start = time.perf_counter()
     for leg in legs:
         t0 = time.perf_counter()
@@ -214,6 +223,7 @@ def forecast_study(out: str | Path | None = None, legs: Sequence[str] = LEG_KIND
         rms_prior = {n: float(np.sqrt(np.mean(Channel(n, w, 1.0).of(
             {c: F0[:, j] for j, c in enumerate(COMPONENTS)}) ** 2))) for n, w in sensor_channels(leg)}
         per = {k: [] for k in res}
+        cond_names += [n for n in model.inputs if n not in cond_names]
         for t in range(n_t):
             tr = make_trial(leg, model, rng, MEDIA[t % len(MEDIA)], noise, bias, k_std)
             r = run_trial(tr, model, lin, fractions, particles, seed + t, k_std=k_std, move_sweeps=move_sweeps,
@@ -229,6 +239,11 @@ def forecast_study(out: str | Path | None = None, legs: Sequence[str] = LEG_KIND
             per["medium"].append(tr["medium"])
             per["step_us"].append(float(np.mean(r["step_us"])))
             per["resamples"].append(r["resamples"])
+            per["map"].append(r["ident"]["map"])
+            per["map_grid"].append(r["ident"]["map_grid"])
+            per["contact"].append(r["contact"])
+            per["k_true"].append(tr["k"])
+            per["cond"].append(dict(tr["condition"]))
         for k in res:
             res[k].append(per[k])
         if progress:
@@ -246,9 +261,16 @@ def forecast_study(out: str | Path | None = None, legs: Sequence[str] = LEG_KIND
          "zeta_true": (("leg", "trial"), np.array(res["zeta_true"])),
          "true_medium": (("leg", "trial"), np.array(res["medium"], dtype=object).astype(str)),
          "step_us_mean": (("leg", "trial"), np.array(res["step_us"])),
-         "resamples": (("leg", "trial"), np.array(res["resamples"]))},
+         "resamples": (("leg", "trial"), np.array(res["resamples"])),
+         "map_medium": (("leg", "trial", "fraction"), np.array(res["map"], dtype=object).astype(str)),
+         "map_medium_grid": (("leg", "trial", "fraction"), np.array(res["map_grid"], dtype=object).astype(str)),
+         "contact_samples": (("leg", "trial", "fraction"), np.array(res["contact"])),
+         "k_true": (("leg", "trial"), np.array(res["k_true"]))},
         coords={"leg": legs, "trial": np.arange(n_t), "fraction": list(fractions), "estimator": list(METHODS),
                 "component": list(COMPONENTS)})
+    for n in cond_names:  # the hidden condition of each trial (NaN where a leg has no such condition)
+        ds[f"true_{n}"] = (("leg", "trial"), np.array([[c.get(n, np.nan) for c in per_leg] for per_leg in res["cond"]]))
+    ds["contact_samples"].attrs["long_name"] = "samples before the cut with force above 1 % of the stroke maximum"
     ds["mse"].attrs.update(units="N^2 (N^2 m^2 for torque)",
                            long_name="forecast MSE of the rest of the stroke vs the noise-free truth")
     ds.attrs.update(study="dddas-forecast", noise_fraction=noise, bias_fraction=bias, k_std=k_std,
@@ -298,4 +320,42 @@ def summarise(ds: xr.Dataset, at: float = 0.3) -> dict:
             "zeta_ci95_width_mean": float((z["zeta_hi"] - z["zeta_lo"]).mean()),
             "step_us_mean": float(ds["step_us_mean"].sel(leg=leg).mean()),
             "trials": int(ds.sizes["trial"])}
+        out["legs"][str(leg)].update(_ceiling(ds, leg, at))
+    return out
+
+
+def _ceiling(ds: xr.Dataset, leg, at: float) -> dict:
+    """What limits the scores (the Bayes ceiling): the exact Bayes (grid) forecast's MSE over
+    the oracle's at every fraction, the grid's confusion matrix at ``at``, and the
+    identification rates of trials split by how many samples before the cut touched the
+    medium (terciles)."""
+    L = ds.sel(leg=leg)
+    mse = L["mse"].mean("trial")
+    comps = [str(c) for c in ds.component.values]
+
+    def by_frac(a, b):
+        return {float(fr): {c: float(mse.sel(fraction=fr, estimator=a, component=c)
+                                     / mse.sel(fraction=fr, estimator=b, component=c)) for c in comps}
+                for fr in ds.fraction.values}
+
+    out = {"grid_over_oracle_by_fraction": by_frac("grid", "oracle"),
+           "terrain_over_oracle_by_fraction": by_frac("terrain", "oracle"),
+           "terrain_over_grid_by_fraction": by_frac("terrain", "grid")}
+    if "map_medium_grid" not in ds:
+        return out
+    f = L.sel(fraction=at)
+    true = [str(v) for v in L["true_medium"].values]
+    media = sorted(set(true), key=list(MEDIA).index)
+    out["confusion_grid"] = {t: {m: int(sum(1 for a, b in zip(true, f["map_medium_grid"].values) if a == t and str(b) == m))
+                                 for m in media} for t in media}
+    nc = f["contact_samples"].values.astype(float)
+    edges = np.quantile(nc, [0, 1 / 3, 2 / 3, 1])
+    bins = []
+    for lo, hi, last in zip(edges[:-1], edges[1:], (False, False, True)):
+        sel = (nc >= lo) & ((nc <= hi) if last else (nc < hi))
+        if sel.any():
+            bins.append({"contact_samples": [int(lo), int(hi)], "trials": int(sel.sum()),
+                         "medium_correct": float(f["correct"].values[sel].mean()),
+                         "medium_correct_exact_bayes_grid": float(f["correct_grid"].values[sel].mean())})
+    out["identification_by_contact_samples"] = bins
     return out

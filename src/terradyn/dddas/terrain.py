@@ -23,7 +23,11 @@ u), not the basis coefficients:
   likelihood needs only sufficient statistics per medium and channel (sum w a a^T,
   sum w a, sum w y a over the observation rows a), so a move costs O(channels x D^2) per
   particle whatever the number of samples. Without the move the copies made by resampling
-  stay identical (the parameters are static) and the filter degenerates.
+  stay identical (the parameters are static) and the filter degenerates. The move runs over
+  runs of equal medium with branch-free loops (medium jumps by a random reflection of the
+  media, an involution, so the Metropolis ratio needs no proposal correction; Tierney 1998,
+  Ann. Appl. Probab. 8:1); with one condition a proposal's k posterior is an exact per-cell
+  quadratic in its position in the table (O(1) per particle).
 
 The hot loops are Numba kernels (float64). Components are read from :data:`COMPONENTS`
 only, so the list can follow a force schema.
@@ -43,6 +47,8 @@ from ..media import FITS, ZETA
 from .filter import _exp_neg, _log01, _u01
 from .surrogate import Surrogate
 
+#: Kernels of the Metropolis-Hastings move (see :class:`TerrainFilter`).
+MOVE_KERNELS = ("vector", "per-particle")
 #: Li 2013's five media (Table S2).
 MEDIA = ("poppy LP", "poppy CP", "0.3 mm glass LP", "0.3 mm glass CP", "3 mm glass CP")
 #: Force components the terrain surrogates model (one list: switch here to a schema's).
@@ -411,6 +417,15 @@ def _block(m, obs, no, ys, rows, wts, Zt, S, der, pk, mk, kpost, lmp, ar):  # pr
         ar[i] = a / pk
 
 
+@njit(cache=True, inline="always")
+def _run_end(mi, s):  # pragma: no cover - compiled
+    """End (exclusive) of the run of equal medium that starts at s."""
+    e = s + 1
+    while e < mi.shape[0] and mi[e] == mi[s]:
+        e += 1
+    return e
+
+
 @njit(cache=True, fastmath=_FAST)
 def _nb_assimilate(k0, f, ys, noise2, R, RES2, Q, q1, r, n1, y1, yy, logc, der, pk, mk, pb,
                    mi, Zt, S, logml, ref, kpost, rows, wts, buf2):  # pragma: no cover - compiled
@@ -454,43 +469,36 @@ def _nb_assimilate(k0, f, ys, noise2, R, RES2, Q, q1, r, n1, y1, yy, logc, der, 
     s = 0
     while s < N:
         m = mi[s]
-        e = s + 1
-        while e < N and mi[e] == m:
-            e += 1
+        e = _run_end(mi, s)
         _block(m, obs, no, ys, rows, wts, Zt[:, s:e], S[:, :, s:e], der, pk, mk, kpost[:, s:e], lmp[s:e], ar[s:e])
         s = e
     return _finish(lmp, ar, logml, ref)
 
 
 @njit(cache=True)
-def _gather(idx, mi, U, Zt, S, logml, kpost, buf):  # pragma: no cover - compiled
-    """Reorder every per-particle array by idx (N,) through the buffer buf (N,)."""
+def _gather(idx, src, dst):  # pragma: no cover - compiled
+    """dst = every per-particle array of src reordered by idx (N,): src and dst are tuples
+    (mi, U, Zt, S, logml, kpost) of distinct arrays (the caller swaps them afterwards, so each
+    element is moved once)."""
+    mi, U, Zt, S, logml, kpost = src
+    mi2, U2, Zt2, S2, logml2, kpost2 = dst
     N = mi.shape[0]
     for i in range(N):
-        buf[i] = mi[idx[i]]
-    for i in range(N):
-        mi[i] = np.int64(buf[i])
-    for a in (logml, kpost[0], kpost[1]):
-        for i in range(N):
-            buf[i] = a[idx[i]]
-        for i in range(N):
-            a[i] = buf[i]
+        j = idx[i]
+        mi2[i] = mi[j]
+        logml2[i] = logml[j]
+        kpost2[0, i] = kpost[0, j]
+        kpost2[1, i] = kpost[1, j]
     for j in range(U.shape[1]):
         for i in range(N):
-            buf[i] = U[idx[i], j]
-        for i in range(N):
-            U[i, j] = buf[i]
+            U2[i, j] = U[idx[i], j]
     for p in range(Zt.shape[0]):
         for i in range(N):
-            buf[i] = Zt[p, idx[i]]
-        for i in range(N):
-            Zt[p, i] = buf[i]
+            Zt2[p, i] = Zt[p, idx[i]]
     for k in range(3):
         for c in range(S.shape[1]):
             for i in range(N):
-                buf[i] = S[k, c, idx[i]]
-            for i in range(N):
-                S[k, c, i] = buf[i]
+                S2[k, c, i] = S[k, c, idx[i]]
 
 
 @njit(cache=True)
@@ -503,8 +511,9 @@ def _nb_runs(mi):  # pragma: no cover - compiled
 
 
 @njit(cache=True)
-def _nb_sort(mi, U, Zt, S, logml, kpost, idx, buf, M):  # pragma: no cover - compiled
-    """Stable counting sort of the particles by medium (keeps the runs long)."""
+def _nb_sort(src, dst, idx, M):  # pragma: no cover - compiled
+    """Stable counting sort of the particles by medium (keeps the runs long): src -> dst."""
+    mi = src[0]
     N = mi.shape[0]
     cnt = np.zeros(M + 1, np.int64)
     for i in range(N):
@@ -515,7 +524,23 @@ def _nb_sort(mi, U, Zt, S, logml, kpost, idx, buf, M):  # pragma: no cover - com
         m = mi[i]
         idx[cnt[m]] = i
         cnt[m] += 1
-    _gather(idx, mi, U, Zt, S, logml, kpost, buf)
+    _gather(idx, src, dst)
+
+
+@njit(cache=True)
+def _nb_step(U, step_max, out):  # pragma: no cover - compiled
+    """out = clip(1.5 x the particles' std of each condition, 1e-3, step_max)."""
+    N, q = U.shape
+    for j in range(q):
+        s = 0.0
+        for i in range(N):
+            s += U[i, j]
+        mu = s / N
+        v = 0.0
+        for i in range(N):
+            d = U[i, j] - mu
+            v += d * d
+        out[j] = min(max(1.5 * math.sqrt(v / N), 1e-3), step_max[j])
 
 
 @njit(cache=True)
@@ -524,11 +549,13 @@ def _nb_seed(seed):  # pragma: no cover - compiled
 
 
 @njit(cache=True)
-def _nb_resample(mi, U, Zt, S, logml, ref, kpost, idx, buf):  # pragma: no cover - compiled
+def _nb_resample(src, dst, ref, idx, buf):  # pragma: no cover - compiled
     """Systematic resampling of every per-particle array by the weights exp(logml - ref)
-    (ancestors in order, so particles sorted by medium stay sorted); idx (N,) int64 and buf
-    (N,) float64 scratch. Afterwards ref = logml (equal weights)."""
-    N = mi.shape[0]
+    (ancestors in order, so particles sorted by medium stay sorted), src -> dst (tuples
+    (mi, U, Zt, S, logml, kpost)); idx (N,) int64 and buf (N,) float64 scratch. Afterwards
+    ref = the new logml (equal weights)."""
+    logml = src[4]
+    N = logml.shape[0]
     lw_max = -np.inf
     for i in range(N):
         lw_max = max(lw_max, logml[i] - ref[i])
@@ -543,15 +570,46 @@ def _nb_resample(mi, U, Zt, S, logml, ref, kpost, idx, buf):  # pragma: no cover
         while j < N - 1 and buf[j] < t:
             j += 1
         idx[i] = j
-    _gather(idx, mi, U, Zt, S, logml, kpost, buf)
+    _gather(idx, src, dst)
+    new = dst[4]
     for i in range(N):
-        ref[i] = logml[i]
+        ref[i] = new[i]
+
+
+@njit(cache=True, inline="always")
+def _take(i, lmp, logml, kp, kpost):  # pragma: no cover - compiled
+    """Particle i takes its accepted proposal's log marginal likelihood and k posterior."""
+    logml[i] = lmp[i]
+    kpost[0, i] = kp[0, i]
+    kpost[1, i] = kp[1, i]
+
+
+@njit(cache=True)
+def _effective(Q, q1, r, der, qe, re):  # pragma: no cover - compiled
+    """All channels in one quadratic form: with the biases integrated out, the k posterior of
+    coefficients z has precision pk + z qe z and precision x mean pk mk + re . z, where per
+    medium qe = sum_c (Q_c - q1_c q1_c^T / d_c) and re = sum_c (r_c - q1_c y1_c / d_c)
+    (der as in :func:`_derive`)."""
+    M, nch, P, _ = Q.shape
+    for m in range(M):
+        for p in range(P):
+            re[m, p] = 0.0
+            for p2 in range(P):
+                qe[m, p, p2] = 0.0
+        for c in range(nch):
+            d = der[m, c]
+            y = der[m, nch + c]
+            for p in range(P):
+                re[m, p] += r[m, c, p] - y * q1[m, c, p]
+                for p2 in range(P):
+                    qe[m, p, p2] += Q[m, c, p, p2] - d * q1[m, c, p] * q1[m, c, p2]
 
 
 @njit(cache=True, fastmath=_FAST)
-def _nb_move(mi, U, Zt, S, logml, ref, kpost, tables, Q, q1, r, der, pk, mk, step, p_jump, seed,
-             mp, Up, Zp, Sp, kp, buf2, acc):  # pragma: no cover - compiled
-    """One random-walk Metropolis-Hastings sweep on (medium, u in [0, 1]^q) targeting the
+def _nb_move_per_particle(mi, U, Zt, S, logml, ref, kpost, tables, Q, q1, r, der, pk, mk, step, p_jump, seed,
+                          mp, Up, Zp, Sp, kp, buf2, acc):  # pragma: no cover - compiled
+    """The previous move kernel (``move_kernel="per-particle"``, kept as the reference the
+    benchmark compares with): one particle at a time, scalar. One random-walk Metropolis-Hastings sweep on (medium, u in [0, 1]^q) targeting the
     posterior given all samples so far (uniform prior on the box and the media): proposals
     move u by a uniform step of std ``step`` per input and, with probability p_jump, switch to
     another medium (uniform, symmetric); random numbers from the counter hash seeded by
@@ -629,12 +687,268 @@ def _nb_move(mi, U, Zt, S, logml, ref, kpost, tables, Q, q1, r, der, pk, mk, ste
             for p in range(P):
                 Zt[p, i] = Zp[i, p]
             for c in range(nch):
-                S[0, c, i] = Sp[0, c, i]
-                S[1, c, i] = Sp[1, c, i]
-                S[2, c, i] = Sp[2, c, i]
-            logml[i] = lmp[i]
-            kpost[0, i] = kp[0, i]
-            kpost[1, i] = kp[1, i]
+                for k in range(3):
+                    S[k, c, i] = Sp[k, c, i]
+            _take(i, lmp, logml, kp, kpost)
+    for i in range(N):
+        ref[i] = logml[i]
+    return n_acc / N
+
+
+@njit(cache=True, fastmath=_FAST)
+def _node_stats(tables, Q, q1, r, der, pk, mk, nodes, cq):  # pragma: no cover - compiled
+    """One condition (tables (M, G, 1, P)): per medium m, channel c and node g, nodes[m, c, g] =
+    (T_g Q T_g, T_g Q T_g+1, q1 . T_g, r . T_g). Along the cell between g and g + 1,
+    z = (1 - f) T_g + f T_g+1 gives exactly z Q z = (1-f)^2 n0_g + 2 f (1-f) n1_g + f^2 n0_g+1,
+    q1 . z and r . z linear in f, so the k posterior's precision a = pk + sum_c (z Q z - (q1 .
+    z)^2 / d_c) is a quadratic and a x E[k] = pk mk + sum_c (r . z - (q1 . z) y1_c / d_c) a
+    linear function of f: cq[m, g] = (a0, a1, a2, e0, e1) with a = a0 + a1 f + a2 f^2 and
+    a E[k] = e0 + e1 f (der as in :func:`_derive`)."""
+    M, G, _, P = tables.shape
+    nch = Q.shape[1]
+    for m in range(M):
+        for c in range(nch):
+            for g in range(G):
+                v0 = 0.0
+                v1 = 0.0
+                v2 = 0.0
+                v3 = 0.0
+                for p in range(P):
+                    qt = 0.0
+                    qn = 0.0
+                    for p2 in range(P):
+                        qt += Q[m, c, p, p2] * tables[m, g, 0, p2]
+                        if g + 1 < G:
+                            qn += Q[m, c, p, p2] * tables[m, g + 1, 0, p2]
+                    tp = tables[m, g, 0, p]
+                    v0 += tp * qt
+                    v1 += tp * qn
+                    v2 += q1[m, c, p] * tp
+                    v3 += r[m, c, p] * tp
+                nodes[m, c, g, 0] = v0
+                nodes[m, c, g, 1] = v1
+                nodes[m, c, g, 2] = v2
+                nodes[m, c, g, 3] = v3
+        for g in range(G - 1):
+            a0 = pk
+            a1 = 0.0
+            a2 = 0.0
+            e0 = pk * mk
+            e1 = 0.0
+            for c in range(nch):
+                A0 = nodes[m, c, g, 0]
+                B = nodes[m, c, g, 1]
+                A1 = nodes[m, c, g + 1, 0]
+                u0 = nodes[m, c, g, 2]
+                u1 = nodes[m, c, g + 1, 2] - u0
+                r0 = nodes[m, c, g, 3]
+                r1 = nodes[m, c, g + 1, 3] - r0
+                d = der[m, c]
+                y = der[m, nch + c]
+                a0 += A0 - d * u0 * u0
+                a1 += 2.0 * (B - A0) - 2.0 * d * u0 * u1
+                a2 += A0 - 2.0 * B + A1 - d * u1 * u1
+                e0 += r0 - y * u0
+                e1 += r1 - y * u1
+            cq[m, g, 0] = a0
+            cq[m, g, 1] = a1
+            cq[m, g, 2] = a2
+            cq[m, g, 3] = e0
+            cq[m, g, 4] = e1
+
+
+@njit(cache=True, fastmath=_FAST)
+def _run_move(m, m2, base, seed, U, Zt, S, logml, kpost, tables, Q, q1, r, der, pk, mk, amp, p_jump, nodes, cq,
+              qe, re, jf, Up, Zp, kp, lmp, ar, acc, mi, cidx):  # pragma: no cover - compiled
+    """The Metropolis-Hastings sweep over one run of particles of medium m (views, so every
+    loop starts at 0 and vectorises): proposals stay in m or (with probability p_jump) go to
+    m2; coefficients and statistics of the two media are blended by the 0/1 mask jf, so the
+    loops over particles are branch-free. Particles are counted from ``base`` for the random
+    numbers. With one condition (G2 = 1) the k posterior's precision and mean come from the
+    per-cell quadratics ``cq`` (see :func:`_node_stats`) in O(1) per particle, and the
+    coefficients and running sums are interpolated for the accepted proposals only; with two,
+    from one quadratic form over all channels (``qe``, ``re``: :func:`_effective`), O(D^2) per
+    particle, the running sums again for the accepted proposals only (compacted, vectorised).
+    cidx: int scratch (the run's part of mi0, which the caller has read). Returns the number of
+    accepted proposals."""
+    n, q = U.shape
+    G1, G2, P = tables.shape[1], tables.shape[2], tables.shape[3]
+    nch = S.shape[1]
+    dm = m2 != m and p_jump > 0.0
+    for i in range(n):
+        b = np.uint32(base + i) * np.uint32(4)
+        jf[i] = 1.0 if (dm and _u01(b, seed) < p_jump) else 0.0
+        ar[i] = 1.0
+    for j in range(q):
+        a = amp[j]
+        for i in range(n):
+            v = U[i, j] + a * (np.float64(_u01(np.uint32(base + i) * np.uint32(4) + np.uint32(1 + j), seed)) - 0.5)
+            Up[j, i] = v
+            ar[i] = ar[i] if (v >= 0.0 and v <= 1.0) else -1.0
+    ek = lmp
+    kp0 = kp[0]
+    kp1 = kp[1]
+    if G2 == 1:
+        # one condition: the k posterior's precision and mean are a quadratic and a linear
+        # function of the fraction f within the proposal's table cell (exact, from cq)
+        flat = cq.reshape(-1)  # (M, G1 - 1, 5) -> offsets (m (G1 - 1) + g) 5 + k
+        for i in range(n):
+            x = min(max(Up[0, i], 0.0), 1.0) * (G1 - 1)
+            i0 = min(int(x), G1 - 2)
+            f = x - i0
+            o = ((m2 if jf[i] > 0.5 else m) * (G1 - 1) + i0) * 5
+            kp0[i] = flat[o] + f * (flat[o + 1] + f * flat[o + 2])  # precision of k
+            ek[i] = flat[o + 3] + f * flat[o + 4]
+    else:
+        # tabulated coefficients of the proposals (bilinear in the box, either medium)
+        for i in range(n):
+            x = min(max(Up[0, i], 0.0), 1.0) * (G1 - 1)
+            i0 = min(int(x), G1 - 2)
+            f0 = x - i0
+            y = min(max(Up[1, i], 0.0), 1.0) * (G2 - 1)
+            i1 = min(int(y), G2 - 2)
+            f1 = y - i1
+            mn = m2 if jf[i] > 0.5 else m
+            for p in range(P):
+                Zp[p, i] = ((1 - f0) * ((1 - f1) * tables[mn, i0, i1, p] + f1 * tables[mn, i0, i1 + 1, p])
+                            + f0 * ((1 - f1) * tables[mn, i0 + 1, i1, p] + f1 * tables[mn, i0 + 1, i1 + 1, p]))
+        # the k posterior's precision a = pk + z qe z and a E[k] = pk mk + re . z (all channels
+        # at once, see :func:`_effective`); the running sums for the accepted proposals only
+        for i in range(n):
+            kp0[i] = pk
+            ek[i] = pk * mk
+        t = kp1
+        for p in range(P):
+            for i in range(n):
+                t[i] = 0.0
+            for p2 in range(P):
+                a = qe[m, p, p2]
+                d = qe[m2, p, p2] - a
+                zp2 = Zp[p2]
+                for i in range(n):
+                    t[i] += (a + d * jf[i]) * zp2[i]
+            ra, rd = re[m, p], re[m2, p] - re[m, p]
+            zp = Zp[p]
+            for i in range(n):
+                z = zp[i]
+                kp0[i] += z * t[i]
+                ek[i] += (ra + rd * jf[i]) * z
+    ca, cd = der[m, 2 * nch], der[m2, 2 * nch] - der[m, 2 * nch]
+    seed2 = np.uint32(seed ^ np.uint32(0x5BD1E995))
+    for i in range(n):  # k posterior; ar <- 1 / (a / pk) (>= 1 clamped; 0 marks out of the box)
+        a = kp0[i]
+        xk = ek[i] / a
+        kp1[i] = 1.0 / a
+        lmp[i] = ca + cd * jf[i] + 0.5 * ek[i] * xk
+        kp0[i] = xk
+        ar[i] = np.float64(np.float32(1.0) / np.float32(min(max(a / pk, 1.0), 1e30))) if ar[i] > 0.0 else 0.0
+    for i in range(n):  # log marginal likelihood and the MH test (uniform prior: the likelihood ratio)
+        v = ar[i]
+        ok = v > 0.0
+        lm = lmp[i] + 0.5 * np.float64(_log01(np.float32(v) if ok else np.float32(1.0)))
+        lmp[i] = lm
+        d = np.float32(min(max(lm - logml[i], -80.0), 0.0))
+        acc[i] = np.uint8(ok and _u01(np.uint32(base + i), seed2) < _exp_neg(d))
+    n_acc = 0
+    for i in range(n):
+        if acc[i]:
+            n_acc += 1
+            mn = m2 if jf[i] > 0.5 else m
+            mi[i] = mn
+            for j in range(q):
+                U[i, j] = Up[j, i]
+            if G2 == 1:
+                x = min(max(Up[0, i], 0.0), 1.0) * (G1 - 1)
+                i0 = min(int(x), G1 - 2)
+                f0 = x - i0
+                h = 1.0 - f0
+                for p in range(P):
+                    Zt[p, i] = h * tables[mn, i0, 0, p] + f0 * tables[mn, i0 + 1, 0, p]
+                for c in range(nch):
+                    S[0, c, i] = h * h * nodes[mn, c, i0, 0] + 2.0 * f0 * h * nodes[mn, c, i0, 1] \
+                        + f0 * f0 * nodes[mn, c, i0 + 1, 0]
+                    S[1, c, i] = h * nodes[mn, c, i0, 2] + f0 * nodes[mn, c, i0 + 1, 2]
+                    S[2, c, i] = h * nodes[mn, c, i0, 3] + f0 * nodes[mn, c, i0 + 1, 3]
+            else:
+                for p in range(P):
+                    Zt[p, i] = Zp[p, i]
+                cidx[n_acc - 1] = i
+            _take(i, lmp, logml, kp, kpost)
+    if G2 > 1 and n_acc > 0:
+        # running sums of the accepted proposals: compacted (k <= i, in order), then
+        # vectorised over them channel by channel, and scattered back
+        for k in range(n_acc):
+            i = cidx[k]
+            jf[k] = jf[i]
+            for p in range(P):
+                Zp[p, k] = Zp[p, i]
+        t = kp[0]
+        s0 = kp[1]
+        s1 = ar
+        s2 = lmp
+        for c in range(nch):
+            for k in range(n_acc):
+                s0[k] = 0.0
+                s1[k] = 0.0
+                s2[k] = 0.0
+            for p in range(P):
+                for k in range(n_acc):
+                    t[k] = 0.0
+                for p2 in range(P):
+                    a = Q[m, c, p, p2]
+                    d = Q[m2, c, p, p2] - a
+                    zp2 = Zp[p2]
+                    for k in range(n_acc):
+                        t[k] += (a + d * jf[k]) * zp2[k]
+                qa, qd = q1[m, c, p], q1[m2, c, p] - q1[m, c, p]
+                ra, rd = r[m, c, p], r[m2, c, p] - r[m, c, p]
+                zp = Zp[p]
+                for k in range(n_acc):
+                    z = zp[k]
+                    s0[k] += z * t[k]
+                    s1[k] += (qa + qd * jf[k]) * z
+                    s2[k] += (ra + rd * jf[k]) * z
+            for k in range(n_acc):
+                i = cidx[k]
+                S[0, c, i] = s0[k]
+                S[1, c, i] = s1[k]
+                S[2, c, i] = s2[k]
+    return n_acc
+
+
+@njit(cache=True)
+def _nb_move(mi, U, Zt, S, logml, ref, kpost, tables, Q, q1, r, der, pk, mk, step, p_jump, shift, seed,
+             mi0, jf, nodes, cq, qe, re, Up, Zp, kp, buf2, acc):  # pragma: no cover - compiled
+    """One random-walk Metropolis-Hastings sweep on (medium, u in [0, 1]^q) targeting the
+    posterior given all samples so far (uniform prior on the box and the media), vectorised
+    over runs of equal medium. Proposals move u by a uniform step of std ``step`` per input
+    and, with probability p_jump, switch medium by the reflection m -> (shift - m) mod M, an
+    involution (so the proposal is symmetric; ``shift`` is drawn uniformly in 0..M-1 per
+    sweep, which makes the target uniform over the media). Random numbers from the counter
+    hash seeded by ``seed``. The full-history likelihood comes from the sufficient
+    statistics Q (M, nch, P, P), q1 and r (M, nch, P). mi0, jf, nodes, cq, qe, re, Up, Zp, kp,
+    buf2, acc: scratch. Returns the acceptance rate; the weights become equal (ref = logml)."""
+    N, q = U.shape
+    M = tables.shape[0]
+    if tables.shape[2] == 1:
+        _node_stats(tables, Q, q1, r, der, pk, mk, nodes, cq)
+    else:
+        _effective(Q, q1, r, der, qe, re)
+    amp = np.empty(q)
+    for j in range(q):
+        amp[j] = step[j] * math.sqrt(12.0)
+    for i in range(N):
+        mi0[i] = mi[i]
+    n_acc = 0
+    s = 0
+    while s < N:
+        m = mi0[s]
+        e = _run_end(mi0, s)
+        m2 = (shift - m) % M
+        n_acc += _run_move(m, m2, s, seed, U[s:e], Zt[:, s:e], S[:, :, s:e], logml[s:e], kpost[:, s:e], tables,
+                           Q, q1, r, der, pk, mk, amp, p_jump, nodes, cq, qe, re, jf[s:e], Up[:, s:e], Zp[:, s:e],
+                           kp[:, s:e], buf2[0, s:e], buf2[1, s:e], acc[s:e], mi[s:e], mi0[s:e])
+        s = e
     for i in range(N):
         ref[i] = logml[i]
     return n_acc / N
@@ -651,12 +965,16 @@ class TerrainFilter:
     resampling (0: a plain bootstrap filter over static parameters, which degenerates);
     step: the largest random-walk std in box units (the step follows the particles'
     spread); p_jump: probability that a move proposes another medium; seed; model_error:
-    add the surrogates' representation error to the sensor noise.
+    add the surrogates' representation error to the sensor noise; move_kernel: ``"vector"``
+    (default: runs of equal medium, branch-free loops over particles, medium jumps by a
+    random reflection of the media) or ``"per-particle"`` (the previous scalar kernel, jumps
+    to a uniform other medium; the benchmark's reference).
     """
 
     def __init__(self, model: TerrainModel, channels: Sequence[Channel], k_std: float = 0.1,
                  n_particles: int = 5000, ess_threshold: float = 0.5, move_sweeps: int = 1,
-                 step: float = 0.05, p_jump: float = 0.2, seed: int = 0, model_error: bool = True):
+                 step: float = 0.05, p_jump: float = 0.2, seed: int = 0, model_error: bool = True,
+                 move_kernel: str = "vector"):
         self.model = model
         self.channels = list(channels)
         if not self.channels:
@@ -675,6 +993,7 @@ class TerrainFilter:
             raise InputError("move-sweeps", f"must be <= 100, got {move_sweeps}")
         self.p_jump = in_range("p-jump", p_jump, 0.0, 1.0)
         self.model_error = bool(model_error)
+        self.move_kernel = choice("move-kernel", move_kernel, MOVE_KERNELS)
         q = len(model.inputs)
         self.step = np.full(q, in_range("step", step, 1e-6, 1.0))
         self.seed = seed
@@ -714,13 +1033,23 @@ class TerrainFilter:
         self._buf = np.empty(N)
         self._buf2 = np.empty((2, N))
         # proposals of the Metropolis-Hastings move
-        self._mv = (np.empty(N, np.int64), np.empty((N, q)), np.empty((N, P)), np.empty((3, nch, N)),
-                    np.empty((2, N)), self._buf2, np.empty(N, np.uint8))
+        if self.move_kernel == "vector":
+            G1, G2 = model.table.shape[1:3]
+            G1 = G1 if G2 == 1 else 2  # (node tables only for one condition)
+            self._mv = (np.empty(N, np.int64), np.empty(N), np.empty((M, nch, G1, 4)), np.empty((M, G1 - 1, 5)),
+                        np.empty((M, P, P)), np.empty((M, P)), np.empty((q, N)), np.empty((P, N)), np.empty((2, N)),
+                        self._buf2, np.empty(N, np.uint8))
+        else:
+            self._mv = (np.empty(N, np.int64), np.empty((N, q)), np.empty((N, P)), np.empty((3, nch, N)),
+                        np.empty((2, N)), self._buf2, np.empty(N, np.uint8))
         g = model.theta
         self._asc = bool(g[-1] > g[0])
         self._g = g if self._asc else g[::-1]
         self._dir = 1.0 if self._asc else -1.0
         self.ess = float(N)
+        self._spare_arrays = None  # gathers write there, then swap (allocated at the first)
+        self._unsorted = False
+        self._step = np.empty(q)
         self.n_samples = 0
         self.n_resamples = 0
         self.acceptance: list[float] = []
@@ -781,6 +1110,8 @@ class TerrainFilter:
             k0, f = len(g) - 2 - k0, 1.0 - f
         self.last_theta = t
         self.n_samples += 1
+        if self._unsorted:
+            self._sort()
         ess = _nb_assimilate(k0, f, ys, self._noise2, self._R, self._RES2, self.Q, self.q1, self.r, self.n1,
                              self.y1, self.yy, self.logc, self.der, self.pk, self.mk, self.pb, self.mi, self.Zt,
                              self.S, self.logml, self.ref, self.kpost, self._rows, self._wts, self._buf2)
@@ -794,20 +1125,53 @@ class TerrainFilter:
     def resample(self) -> None:
         """Resample and (``move_sweeps`` > 0) rejuvenate by Metropolis-Hastings moves."""
         self.n_resamples += 1
-        _nb_resample(self.mi, self.U, self.Zt, self.S, self.logml, self.ref, self.kpost, self._idx, self._buf)
+        _nb_resample(self._state, self._spare, self.ref, self._idx, self._buf)
+        self._swap()
         if self.move_sweeps:
             # random-walk scale from the spread of the (now equally weighted) conditions
-            step = np.clip(1.5 * self.U.std(axis=0), 1e-3, self.step)
-            for _ in range(self.move_sweeps):
+            step = self._step
+            _nb_step(self.U, self.step, step)
+            for sweep in range(self.move_sweeps):
+                if sweep and self.move_kernel == "vector" and self._unsorted:
+                    self._sort()  # (the vectorised sweep works on runs of equal medium)
+                self._unsorted = self.p_jump > 0 and len(self.model.media) > 1
                 seed = np.uint32(self.rng.integers(0, 2 ** 32, dtype=np.uint64))
-                acc = _nb_move(self.mi, self.U, self.Zt, self.S, self.logml, self.ref, self.kpost, self.model.table,
-                               self.Q, self.q1, self.r, self.der, self.pk, self.mk, step, self.p_jump, seed, *self._mv)
+                args = (self.mi, self.U, self.Zt, self.S, self.logml, self.ref, self.kpost, self.model.table,
+                        self.Q, self.q1, self.r, self.der, self.pk, self.mk, step, self.p_jump)
+                if self.move_kernel == "vector":
+                    shift = int(self.rng.integers(0, len(self.model.media)))
+                    acc = _nb_move(*args, shift, seed, *self._mv)
+                else:
+                    acc = _nb_move_per_particle(*args, seed, *self._mv)
                 self.acceptance.append(float(acc))
-            if self.p_jump > 0 and len(self.model.media) > 1 and _nb_runs(self.mi) > 4 * len(self.model.media):
-                _nb_sort(self.mi, self.U, self.Zt, self.S, self.logml, self.kpost, self._idx, self._buf,
-                         len(self.model.media))
-                self.ref[:] = self.logml
+            # medium jumps break the runs of equal medium: sorted again before the next update
+            # (deferred, so that a step that resamples does not also pay for the sort)
         self.ess = float(self.n)
+
+    def _sort(self) -> None:
+        """Sort the particles by medium if the runs of equal medium got short."""
+        self._unsorted = False
+        if _nb_runs(self.mi) > 4 * len(self.model.media):
+            _nb_sort(self._state, self._spare, self._idx, len(self.model.media))
+            self._swap()
+            self.ref[:] = self.logml  # (the weights are equal after a move)
+
+    @property
+    def _state(self) -> tuple:
+        """The per-particle arrays (reordered together by resampling and sorting)."""
+        return self.mi, self.U, self.Zt, self.S, self.logml, self.kpost
+
+    @property
+    def _spare(self) -> tuple:
+        if self._spare_arrays is None:
+            self._spare_arrays = tuple(np.empty_like(a) for a in self._state)
+        return self._spare_arrays
+
+    def _swap(self) -> None:
+        """Make the spare arrays (just written by a gather) the state, and the state spare."""
+        spare = self._state
+        self.mi, self.U, self.Zt, self.S, self.logml, self.kpost = self._spare
+        self._spare_arrays = spare
 
     # -------------------------------------------------------------- posterior summaries
     @property
