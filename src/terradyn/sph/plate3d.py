@@ -245,11 +245,13 @@ def _update_ghosts(pos, vel, gv, rho, mass, sig, kind, nz, dcl, grd, side, src, 
 
 
 @njit(cache=True)
-def _build_pairs(pos, kind, cell_start, cell_idx, ss, sb, fp, ip):
-    """Bin the particles (real and ghost) in cells of side >= the list radius and list the
-    pairs within it that the passes need: granular-granular pairs with a real particle (ss,
-    the lower index first) and granular-boundary pairs with a real one (sb: granular,
-    boundary). Returns False when a list is full."""
+def _build_pairs(pos, kind, cell_start, cell_idx, ss, sso, sb, sbo, fp, ip):
+    """Bin the particles (real and ghost) in cells of side >= the list radius and list, per
+    granular particle p (compressed rows: partners ss[sso[p]:sso[p + 1]]), the pairs within
+    the list radius that the passes need: granular partners q > p (a real p: each granular
+    pair once, acting on both), and boundary partners (sb, sbo) of real granular particles
+    and of granular ghosts next to real boundary particles (their extrapolation). Returns
+    False when a list is full."""
     n = ip[I_NR] + ip[I_NG]
     ncx, ncy, ncz = ip[I_NCX], ip[I_NCY], ip[I_NCZ]
     ncell = ncx * ncy * ncz
@@ -278,12 +280,12 @@ def _build_pairs(pos, kind, cell_start, cell_idx, ss, sb, fp, ip):
     cap_ss = ss.shape[0]
     cap_sb = sb.shape[0]
     for p in range(n):
+        sso[p] = nss
+        sbo[p] = nsb
         c = cid[p]
-        if c < 0:
+        if c < 0 or kind[p] != SOIL:
             continue
-        kp = kind[p]
-        if p >= nr and kp != SOIL:
-            continue  # a boundary ghost pairs only with real granular particles (found from them)
+        real = p < nr
         cz = c // (ncx * ncy)
         cy = (c // ncx) % ncy
         cx = c % ncx
@@ -303,16 +305,11 @@ def _build_pairs(pos, kind, cell_start, cell_idx, ss, sb, fp, ip):
                     for t in range(cell_start[cc], cell_start[cc + 1]):
                         q = cell_idx[t]
                         kq = kind[q]
-                        # each unordered pair once: from its granular end (the lower index if
-                        # both are granular)
-                        if kp == SOIL and kq == SOIL:
-                            if q <= p or (p >= nr and q >= nr):
+                        if kq == SOIL:
+                            if q <= p or not real:
                                 continue
-                        elif kp == SOIL:
-                            if q >= nr and p >= nr:
-                                continue
-                        else:
-                            continue  # boundary p: its pairs are listed from the granular end
+                        elif not real and q >= nr:
+                            continue
                         rx = pos[p, 0] - pos[q, 0]
                         ry = pos[p, 1] - pos[q, 1]
                         rz = pos[p, 2] - pos[q, 2]
@@ -321,15 +318,15 @@ def _build_pairs(pos, kind, cell_start, cell_idx, ss, sb, fp, ip):
                         if kq == SOIL:
                             if nss >= cap_ss:
                                 return False
-                            ss[nss, 0] = p
-                            ss[nss, 1] = q
+                            ss[nss] = q
                             nss += 1
                         else:
                             if nsb >= cap_sb:
                                 return False
-                            sb[nsb, 0] = p
-                            sb[nsb, 1] = q
+                            sb[nsb] = q
                             nsb += 1
+    sso[n] = nss
+    sbo[n] = nsb
     ip[I_NSS] = nss
     ip[I_NSB] = nsb
     return True
@@ -337,7 +334,7 @@ def _build_pairs(pos, kind, cell_start, cell_idx, ss, sb, fp, ip):
 
 # ------------------------------------------------------------------------- the pair terms
 @njit(cache=True, fastmath=True)
-def _boundary_pass(pos, vel, gv, rho, sig, kind, nz, dcl, sb, wsb, reuse, bacc, fp, ip):
+def _boundary_pass(pos, vel, gv, rho, sig, kind, nz, dcl, sb, sbo, wsb, reuse, bacc, fp, ip):
     """Adami extrapolation: stress and (no-slip) ghost velocity of every real wall and
     plate particle from the granular particles around it (Shepard average + rho (g - a_w) .
     (x_w - x_f); a_w = 0: walls fixed, the plate moves at constant speed). A plate marker
@@ -346,39 +343,46 @@ def _boundary_pass(pos, vel, gv, rho, sig, kind, nz, dcl, sb, wsb, reuse, bacc, 
     h = fp[F_H]
     gz = fp[F_GZ]
     nr = ip[I_NR]
+    n = nr + ip[I_NG]
     sup2 = 4.0 * h * h
     c_w = _W3D / (h * h * h)
     bacc[:nr] = 0.0
-    for k in range(ip[I_NSB]):
-        f = sb[k, 0]
-        w = sb[k, 1]
-        rz = pos[w, 2] - pos[f, 2]
-        if reuse:
-            wgt = wsb[k]
-            if wgt == 0.0:
-                continue
-        else:
-            wsb[k] = 0.0
-            if w >= nr or kind[f] != SOIL:
-                continue
-            rx = pos[w, 0] - pos[f, 0]
-            ry = pos[w, 1] - pos[f, 1]
-            r2 = rx * rx + ry * ry + rz * rz
-            if r2 >= sup2:
-                continue
-            if kind[w] == LEG and (-rz * nz[w] + dcl[w]) <= 0.0:
-                continue
-            q = math.sqrt(r2) / h
-            t = 1.0 - 0.5 * q
-            wgt = c_w * t * t * t * t * (2.0 * q + 1.0)
-            wsb[k] = wgt
-        bacc[w, 0] += wgt
-        for c in range(6):
-            bacc[w, 1 + c] += sig[f, c] * wgt
-        bacc[w, 7] += vel[f, 0] * wgt
-        bacc[w, 8] += vel[f, 1] * wgt
-        bacc[w, 9] += vel[f, 2] * wgt
-        bacc[w, 10] += rho[f] * (gz * rz) * wgt
+    for f in range(n):
+        if kind[f] != SOIL:
+            continue
+        xf = pos[f, 0]
+        yf = pos[f, 1]
+        zf = pos[f, 2]
+        rf = rho[f]
+        for k in range(sbo[f], sbo[f + 1]):
+            w = sb[k]
+            rz = pos[w, 2] - zf
+            if reuse:
+                wgt = wsb[k]
+                if wgt == 0.0:
+                    continue
+            else:
+                wsb[k] = 0.0
+                if w >= nr:
+                    continue
+                rx = pos[w, 0] - xf
+                ry = pos[w, 1] - yf
+                r2 = rx * rx + ry * ry + rz * rz
+                if r2 >= sup2:
+                    continue
+                if kind[w] == LEG and (-rz * nz[w] + dcl[w]) <= 0.0:
+                    continue
+                q = math.sqrt(r2) / h
+                t = 1.0 - 0.5 * q
+                wgt = c_w * t * t * t * t * (2.0 * q + 1.0)
+                wsb[k] = wgt
+            bacc[w, 0] += wgt
+            for c in range(6):
+                bacc[w, 1 + c] += sig[f, c] * wgt
+            bacc[w, 7] += vel[f, 0] * wgt
+            bacc[w, 8] += vel[f, 1] * wgt
+            bacc[w, 9] += vel[f, 2] * wgt
+            bacc[w, 10] += rf * (gz * rz) * wgt
     for w in range(nr):
         kw = kind[w]
         if kw != WALL and kw != LEG:
@@ -402,8 +406,8 @@ def _boundary_pass(pos, vel, gv, rho, sig, kind, nz, dcl, sb, wsb, reuse, bacc, 
 
 
 @njit(cache=True, fastmath=True)
-def _strain_pass(pos, vel, gv, rho, mass, sig, kind, nz, dcl, side, ss, sb, fss, fsb, lg, fp,
-                 ip):
+def _strain_pass(pos, vel, gv, rho, mass, sig, kind, nz, dcl, side, ss, sso, sb, sbo, fss, fsb,
+                 lg, fp, ip):
     """Pass 1: d rho/dt and the velocity gradient of every real granular particle (l_ab =
     dv_a/dx_b, lg[i] = (d rho/dt, lxx, lxy, lxz, lyx, lyy, lyz, lzx, lzy, lzz)), then
     :func:`dp_update3`. The kernel-gradient factors (grad W = fdw r) go to fss, fsb (0: no
@@ -414,86 +418,115 @@ def _strain_pass(pos, vel, gv, rho, mass, sig, kind, nz, dcl, side, ss, sb, fss,
     dwc = -5.0 * _W3D / (h * h * h * h * h)
     inv_h = 1.0 / h
     lg[:nr] = 0.0
-    for k in range(ip[I_NSS]):
-        a = ss[k, 0]
-        b = ss[k, 1]
-        fss[k] = 0.0
-        if kind[a] != SOIL or kind[b] != SOIL or side[a] * side[b] < 0.0:
+    for a in range(nr):
+        if kind[a] != SOIL:
             continue
-        rx = pos[a, 0] - pos[b, 0]
-        ry = pos[a, 1] - pos[b, 1]
-        rz = pos[a, 2] - pos[b, 2]
-        r2 = rx * rx + ry * ry + rz * rz
-        if r2 >= sup2:
-            continue
-        t = 1.0 - 0.5 * math.sqrt(r2) * inv_h
-        fdw = dwc * t * t * t
-        fss[k] = fdw
-        gx = fdw * rx
-        gy = fdw * ry
-        gzz = fdw * rz
-        dvx = vel[a, 0] - vel[b, 0]
-        dvy = vel[a, 1] - vel[b, 1]
-        dvz = vel[a, 2] - vel[b, 2]
-        dvg = dvx * gx + dvy * gy + dvz * gzz
-        vb = mass[b] / rho[b]
-        lg[a, 0] += mass[b] * dvg
-        lg[a, 1] -= vb * dvx * gx
-        lg[a, 2] -= vb * dvx * gy
-        lg[a, 3] -= vb * dvx * gzz
-        lg[a, 4] -= vb * dvy * gx
-        lg[a, 5] -= vb * dvy * gy
-        lg[a, 6] -= vb * dvy * gzz
-        lg[a, 7] -= vb * dvz * gx
-        lg[a, 8] -= vb * dvz * gy
-        lg[a, 9] -= vb * dvz * gzz
-        if b < nr:
-            va = mass[a] / rho[a]
-            lg[b, 0] += mass[a] * dvg
-            lg[b, 1] -= va * dvx * gx
-            lg[b, 2] -= va * dvx * gy
-            lg[b, 3] -= va * dvx * gzz
-            lg[b, 4] -= va * dvy * gx
-            lg[b, 5] -= va * dvy * gy
-            lg[b, 6] -= va * dvy * gzz
-            lg[b, 7] -= va * dvz * gx
-            lg[b, 8] -= va * dvz * gy
-            lg[b, 9] -= va * dvz * gzz
-    for k in range(ip[I_NSB]):
-        a = sb[k, 0]
-        w = sb[k, 1]
-        fsb[k] = 0.0
-        if a >= nr or kind[a] != SOIL:
-            continue
-        rx = pos[a, 0] - pos[w, 0]
-        ry = pos[a, 1] - pos[w, 1]
-        rz = pos[a, 2] - pos[w, 2]
-        r2 = rx * rx + ry * ry + rz * rz
-        if r2 >= sup2:
-            continue
-        if kind[w] == LEG and rz * nz[w] + dcl[w] <= 0.0:
-            continue
-        t = 1.0 - 0.5 * math.sqrt(r2) * inv_h
-        fdw = dwc * t * t * t
-        fsb[k] = fdw
-        gx = fdw * rx
-        gy = fdw * ry
-        gzz = fdw * rz
-        dvx = vel[a, 0] - gv[w, 0]
-        dvy = vel[a, 1] - gv[w, 1]
-        dvz = vel[a, 2] - gv[w, 2]
-        dvg = dvx * gx + dvy * gy + dvz * gzz
-        vb = mass[w] / rho[w]
-        lg[a, 0] += mass[w] * dvg
-        lg[a, 1] -= vb * dvx * gx
-        lg[a, 2] -= vb * dvx * gy
-        lg[a, 3] -= vb * dvx * gzz
-        lg[a, 4] -= vb * dvy * gx
-        lg[a, 5] -= vb * dvy * gy
-        lg[a, 6] -= vb * dvy * gzz
-        lg[a, 7] -= vb * dvz * gx
-        lg[a, 8] -= vb * dvz * gy
-        lg[a, 9] -= vb * dvz * gzz
+        xa = pos[a, 0]
+        ya = pos[a, 1]
+        za = pos[a, 2]
+        vxa = vel[a, 0]
+        vya = vel[a, 1]
+        vza = vel[a, 2]
+        sa = side[a]
+        va = mass[a] / rho[a]
+        ma = mass[a]
+        d0 = 0.0
+        l1 = 0.0
+        l2 = 0.0
+        l3 = 0.0
+        l4 = 0.0
+        l5 = 0.0
+        l6 = 0.0
+        l7 = 0.0
+        l8 = 0.0
+        l9 = 0.0
+        for k in range(sso[a], sso[a + 1]):
+            b = ss[k]
+            fss[k] = 0.0
+            if kind[b] != SOIL or sa * side[b] < 0.0:
+                continue
+            rx = xa - pos[b, 0]
+            ry = ya - pos[b, 1]
+            rz = za - pos[b, 2]
+            r2 = rx * rx + ry * ry + rz * rz
+            if r2 >= sup2:
+                continue
+            t = 1.0 - 0.5 * math.sqrt(r2) * inv_h
+            fdw = dwc * t * t * t
+            fss[k] = fdw
+            gx = fdw * rx
+            gy = fdw * ry
+            gzz = fdw * rz
+            dvx = vxa - vel[b, 0]
+            dvy = vya - vel[b, 1]
+            dvz = vza - vel[b, 2]
+            dvg = dvx * gx + dvy * gy + dvz * gzz
+            mb = mass[b]
+            vb = mb / rho[b]
+            d0 += mb * dvg
+            l1 -= vb * dvx * gx
+            l2 -= vb * dvx * gy
+            l3 -= vb * dvx * gzz
+            l4 -= vb * dvy * gx
+            l5 -= vb * dvy * gy
+            l6 -= vb * dvy * gzz
+            l7 -= vb * dvz * gx
+            l8 -= vb * dvz * gy
+            l9 -= vb * dvz * gzz
+            if b < nr:
+                lg[b, 0] += ma * dvg
+                lg[b, 1] -= va * dvx * gx
+                lg[b, 2] -= va * dvx * gy
+                lg[b, 3] -= va * dvx * gzz
+                lg[b, 4] -= va * dvy * gx
+                lg[b, 5] -= va * dvy * gy
+                lg[b, 6] -= va * dvy * gzz
+                lg[b, 7] -= va * dvz * gx
+                lg[b, 8] -= va * dvz * gy
+                lg[b, 9] -= va * dvz * gzz
+        for k in range(sbo[a], sbo[a + 1]):
+            w = sb[k]
+            fsb[k] = 0.0
+            rx = xa - pos[w, 0]
+            ry = ya - pos[w, 1]
+            rz = za - pos[w, 2]
+            r2 = rx * rx + ry * ry + rz * rz
+            if r2 >= sup2:
+                continue
+            if kind[w] == LEG and rz * nz[w] + dcl[w] <= 0.0:
+                continue
+            t = 1.0 - 0.5 * math.sqrt(r2) * inv_h
+            fdw = dwc * t * t * t
+            fsb[k] = fdw
+            gx = fdw * rx
+            gy = fdw * ry
+            gzz = fdw * rz
+            dvx = vxa - gv[w, 0]
+            dvy = vya - gv[w, 1]
+            dvz = vza - gv[w, 2]
+            dvg = dvx * gx + dvy * gy + dvz * gzz
+            mw = mass[w]
+            vw = mw / rho[w]
+            d0 += mw * dvg
+            l1 -= vw * dvx * gx
+            l2 -= vw * dvx * gy
+            l3 -= vw * dvx * gzz
+            l4 -= vw * dvy * gx
+            l5 -= vw * dvy * gy
+            l6 -= vw * dvy * gzz
+            l7 -= vw * dvz * gx
+            l8 -= vw * dvz * gy
+            l9 -= vw * dvz * gzz
+        lg[a, 0] += d0
+        lg[a, 1] += l1
+        lg[a, 2] += l2
+        lg[a, 3] += l3
+        lg[a, 4] += l4
+        lg[a, 5] += l5
+        lg[a, 6] += l6
+        lg[a, 7] += l7
+        lg[a, 8] += l8
+        lg[a, 9] += l9
     dt = fp[F_DT]
     for i in range(nr):
         if kind[i] != SOIL:
@@ -507,8 +540,8 @@ def _strain_pass(pos, vel, gv, rho, mass, sig, kind, nz, dcl, side, ss, sb, fss,
 
 
 @njit(cache=True, fastmath=True)
-def _accel_pass(pos, vel, rho, mass, sig, psig, kind, nz, dcl, grd, ss, sb, fss, fsb, acc, cont,
-                fp, ip):
+def _accel_pass(pos, vel, rho, mass, sig, psig, kind, nz, dcl, grd, ss, sso, sb, sbo, fss, fsb,
+                acc, cont, fp, ip):
     """Pass 2's pair sums (the pairs and kernel-gradient factors of pass 1, positions
     unchanged since): acceleration of every real granular particle (acc[i, 0:3]), its force
     on the plate (acc[i, 3:6]) and the nearest guarded plate surface (cont[i] = (distance,
@@ -526,80 +559,105 @@ def _accel_pass(pos, vel, rho, mass, sig, psig, kind, nz, dcl, grd, ss, sb, fss,
         for c in range(6):
             psig[i, c] = sig[i, c] * inv2
     acc[:nr] = 0.0
-    for i in range(nr):
-        cont[i, 0] = fp[F_GAP]
-        cont[i, 1] = 0.0
-    for k in range(ip[I_NSS]):
-        fdw = fss[k]
-        if fdw == 0.0:
+    for a in range(nr):
+        if kind[a] != SOIL:
             continue
-        a = ss[k, 0]
-        b = ss[k, 1]
-        rx = pos[a, 0] - pos[b, 0]
-        ry = pos[a, 1] - pos[b, 1]
-        rz = pos[a, 2] - pos[b, 2]
-        gx = fdw * rx
-        gy = fdw * ry
-        gzz = fdw * rz
-        vdotr = ((vel[a, 0] - vel[b, 0]) * rx + (vel[a, 1] - vel[b, 1]) * ry
-                 + (vel[a, 2] - vel[b, 2]) * rz)
-        pi_ij = 0.0
-        if vdotr < 0.0:
-            mu = h * vdotr / (rx * rx + ry * ry + rz * rz + 0.01 * h2)
-            pi_ij = (-ava * c0 * mu + avb * mu * mu) / (0.5 * (rho[a] + rho[b]))
-        txx = psig[a, S_XX] + psig[b, S_XX] - pi_ij
-        tyy = psig[a, S_YY] + psig[b, S_YY] - pi_ij
-        tzz = psig[a, S_ZZ] + psig[b, S_ZZ] - pi_ij
-        txy = psig[a, S_XY] + psig[b, S_XY]
-        txz = psig[a, S_XZ] + psig[b, S_XZ]
-        tyz = psig[a, S_YZ] + psig[b, S_YZ]
-        fx = txx * gx + txy * gy + txz * gzz
-        fy = txy * gx + tyy * gy + tyz * gzz
-        fz = txz * gx + tyz * gy + tzz * gzz
-        mb = mass[b]
-        acc[a, 0] += mb * fx
-        acc[a, 1] += mb * fy
-        acc[a, 2] += mb * fz
-        if b < nr:
-            ma = mass[a]
-            acc[b, 0] -= ma * fx
-            acc[b, 1] -= ma * fy
-            acc[b, 2] -= ma * fz
-    for k in range(ip[I_NSB]):
-        fdw = fsb[k]
-        if fdw == 0.0:
-            continue
-        a = sb[k, 0]
-        w = sb[k, 1]
-        rx = pos[a, 0] - pos[w, 0]
-        ry = pos[a, 1] - pos[w, 1]
-        rz = pos[a, 2] - pos[w, 2]
-        gx = fdw * rx
-        gy = fdw * ry
-        gzz = fdw * rz
-        txx = psig[a, S_XX] + psig[w, S_XX]
-        tyy = psig[a, S_YY] + psig[w, S_YY]
-        tzz = psig[a, S_ZZ] + psig[w, S_ZZ]
-        txy = psig[a, S_XY] + psig[w, S_XY]
-        txz = psig[a, S_XZ] + psig[w, S_XZ]
-        tyz = psig[a, S_YZ] + psig[w, S_YZ]
-        mw = mass[w]
-        pax = mw * (txx * gx + txy * gy + txz * gzz)
-        pay = mw * (txy * gx + tyy * gy + tyz * gzz)
-        paz = mw * (txz * gx + tyz * gy + tzz * gzz)
-        acc[a, 0] += pax
-        acc[a, 1] += pay
-        acc[a, 2] += paz
-        if kind[w] == LEG:
-            ma = mass[a]
-            acc[a, 3] -= ma * pax
-            acc[a, 4] -= ma * pay
-            acc[a, 5] -= ma * paz
-            if grd[w] > 0.0:
-                dn = rz * nz[w] + dcl[w] - half_t
-                if dn < cont[a, 0]:
-                    cont[a, 0] = dn
-                    cont[a, 1] = nz[w]
+        xa = pos[a, 0]
+        ya = pos[a, 1]
+        za = pos[a, 2]
+        vxa = vel[a, 0]
+        vya = vel[a, 1]
+        vza = vel[a, 2]
+        ra = rho[a]
+        ma = mass[a]
+        pxx = psig[a, S_XX]
+        pyy = psig[a, S_YY]
+        pzz = psig[a, S_ZZ]
+        pxy = psig[a, S_XY]
+        pxz = psig[a, S_XZ]
+        pyz = psig[a, S_YZ]
+        ax = 0.0
+        ay = 0.0
+        az = 0.0
+        for k in range(sso[a], sso[a + 1]):
+            fdw = fss[k]
+            if fdw == 0.0:
+                continue
+            b = ss[k]
+            rx = xa - pos[b, 0]
+            ry = ya - pos[b, 1]
+            rz = za - pos[b, 2]
+            gx = fdw * rx
+            gy = fdw * ry
+            gzz = fdw * rz
+            vdotr = (vxa - vel[b, 0]) * rx + (vya - vel[b, 1]) * ry + (vza - vel[b, 2]) * rz
+            pi_ij = 0.0
+            if vdotr < 0.0:
+                mu = h * vdotr / (rx * rx + ry * ry + rz * rz + 0.01 * h2)
+                pi_ij = (-ava * c0 * mu + avb * mu * mu) / (0.5 * (ra + rho[b]))
+            txx = pxx + psig[b, S_XX] - pi_ij
+            tyy = pyy + psig[b, S_YY] - pi_ij
+            tzz = pzz + psig[b, S_ZZ] - pi_ij
+            txy = pxy + psig[b, S_XY]
+            txz = pxz + psig[b, S_XZ]
+            tyz = pyz + psig[b, S_YZ]
+            fx = txx * gx + txy * gy + txz * gzz
+            fy = txy * gx + tyy * gy + tyz * gzz
+            fz = txz * gx + tyz * gy + tzz * gzz
+            mb = mass[b]
+            ax += mb * fx
+            ay += mb * fy
+            az += mb * fz
+            if b < nr:
+                acc[b, 0] -= ma * fx
+                acc[b, 1] -= ma * fy
+                acc[b, 2] -= ma * fz
+        f3x = 0.0
+        f3y = 0.0
+        f3z = 0.0
+        dmin = fp[F_GAP]
+        pn = 0.0
+        for k in range(sbo[a], sbo[a + 1]):
+            fdw = fsb[k]
+            if fdw == 0.0:
+                continue
+            w = sb[k]
+            rx = xa - pos[w, 0]
+            ry = ya - pos[w, 1]
+            rz = za - pos[w, 2]
+            gx = fdw * rx
+            gy = fdw * ry
+            gzz = fdw * rz
+            txx = pxx + psig[w, S_XX]
+            tyy = pyy + psig[w, S_YY]
+            tzz = pzz + psig[w, S_ZZ]
+            txy = pxy + psig[w, S_XY]
+            txz = pxz + psig[w, S_XZ]
+            tyz = pyz + psig[w, S_YZ]
+            mw = mass[w]
+            pax = mw * (txx * gx + txy * gy + txz * gzz)
+            pay = mw * (txy * gx + tyy * gy + tyz * gzz)
+            paz = mw * (txz * gx + tyz * gy + tzz * gzz)
+            ax += pax
+            ay += pay
+            az += paz
+            if kind[w] == LEG:
+                f3x -= ma * pax
+                f3y -= ma * pay
+                f3z -= ma * paz
+                if grd[w] > 0.0:
+                    dn = rz * nz[w] + dcl[w] - half_t
+                    if dn < dmin:
+                        dmin = dn
+                        pn = nz[w]
+        acc[a, 0] += ax
+        acc[a, 1] += ay
+        acc[a, 2] += az
+        acc[a, 3] = f3x
+        acc[a, 4] = f3y
+        acc[a, 5] = f3z
+        cont[a, 0] = dmin
+        cont[a, 1] = pn
 
 
 @njit(cache=True, fastmath=True)
@@ -708,8 +766,8 @@ def _max_disp2(pos, pb, kind, nr):
 
 @njit(cache=True)
 def steps3d(zc, vz, damp, forces, pos, vel, gv, rho, mass, sig, kind, nz, dcl, grd, side, src,
-            gs, go, boz, lidx, pb, cell_start, cell_idx, ss, sb, fss, fsb, wsb, lg, acc, cont,
-            bacc, psig, fp, ip):
+            gs, go, boz, lidx, pb, cell_start, cell_idx, ss, sso, sb, sbo, fss, fsb, wsb, lg,
+            acc, cont, bacc, psig, fp, ip):
     """Advance len(zc) steps: per step the plate (markers ``lidx`` at z = zc[s] + boz, speed
     vz[s]), its sides, the lists (rebuilt with the ghosts when a particle moved half the
     skin), the boundary state, pass 1, the boundary state again, pass 2 with damping
@@ -735,21 +793,21 @@ def steps3d(zc, vz, damp, forces, pos, vel, gv, rho, mass, sig, kind, nz, dcl, g
             ip[I_NG] = ng
             _update_ghosts(pos, vel, gv, rho, mass, sig, kind, nz, dcl, grd, side, src, gs, go,
                            ip)
-            if not _build_pairs(pos, kind, cell_start, cell_idx, ss, sb, fp, ip):
+            if not _build_pairs(pos, kind, cell_start, cell_idx, ss, sso, sb, sbo, fp, ip):
                 ip[I_BUILDS] = 0
                 return s, PAIRS_FULL
             pb[:nr] = pos[:nr]
             ip[I_BUILDS] += 1
         _update_ghosts(pos, vel, gv, rho, mass, sig, kind, nz, dcl, grd, side, src, gs, go, ip)
-        _boundary_pass(pos, vel, gv, rho, sig, kind, nz, dcl, sb, wsb, False, bacc, fp, ip)
+        _boundary_pass(pos, vel, gv, rho, sig, kind, nz, dcl, sb, sbo, wsb, False, bacc, fp, ip)
         _update_ghosts(pos, vel, gv, rho, mass, sig, kind, nz, dcl, grd, side, src, gs, go, ip)
-        _strain_pass(pos, vel, gv, rho, mass, sig, kind, nz, dcl, side, ss, sb, fss, fsb, lg, fp,
-                     ip)
+        _strain_pass(pos, vel, gv, rho, mass, sig, kind, nz, dcl, side, ss, sso, sb, sbo, fss,
+                     fsb, lg, fp, ip)
         _update_ghosts(pos, vel, gv, rho, mass, sig, kind, nz, dcl, grd, side, src, gs, go, ip)
-        _boundary_pass(pos, vel, gv, rho, sig, kind, nz, dcl, sb, wsb, True, bacc, fp, ip)
+        _boundary_pass(pos, vel, gv, rho, sig, kind, nz, dcl, sb, sbo, wsb, True, bacc, fp, ip)
         _update_ghosts(pos, vel, gv, rho, mass, sig, kind, nz, dcl, grd, side, src, gs, go, ip)
-        _accel_pass(pos, vel, rho, mass, sig, psig, kind, nz, dcl, grd, ss, sb, fss, fsb, acc,
-                    cont, fp, ip)
+        _accel_pass(pos, vel, rho, mass, sig, psig, kind, nz, dcl, grd, ss, sso, sb, sbo, fss,
+                    fsb, acc, cont, fp, ip)
         f3[:] = 0.0
         bad = _kick(pos, vel, mass, rho, sig, kind, acc, cont, vz[s], damp[s], f3, fp, ip)
         forces[s, 0] = f3[0]
@@ -825,7 +883,8 @@ def plate_scene(medium: str | GranularMaterial = "3 mm glass CP", *, dx: float =
                 width: float = PLATE_WIDTH, thickness: float = PLATE_THICKNESS,
                 slab: int | None = None, half_x: float | None = None,
                 half_y: float | None = None, depth: float | None = None,
-                mirror_x: bool = True, z0: float | None = None) -> Scene3D:
+                mirror_x: bool = True, z0: float | None = None,
+                with_plate: bool = True) -> Scene3D:
     """The bed and plate of the 3D plate test, a quarter of it (symmetry planes x = 0, y = 0).
 
     The plate (``length`` along x, ``width`` along y, ``thickness``) is centred at x = y = 0
@@ -836,7 +895,7 @@ def plate_scene(medium: str | GranularMaterial = "3 mm glass CP", *, dx: float =
     above the surface, ``config.wall_layers`` layers). ``slab`` = n: the plane-strain
     configuration instead, a slab n particles thick in y between two symmetry planes with
     the plate spanning it (the 2D test in 3D). ``mirror_x`` False: both halves in x, with a
-    wall at -half_x (a check of the x mirror)."""
+    wall at -half_x (a check of the x mirror). ``with_plate`` False: the bed alone."""
     mat = _material(medium)
     cfg = config or SPHConfig(dx=dx)
     dx = cfg.dx
@@ -901,12 +960,13 @@ def plate_scene(medium: str | GranularMaterial = "3 mm glass CP", *, dx: float =
             d = 0.5 * t - (k + 0.5) * dx
             mk.append(np.stack([MX, MY, np.full_like(MX, sd * d), np.full_like(MX, sd),
                                 np.full_like(MX, d), guard_xy.astype(float)], -1))
-    mk = np.concatenate(mk)
+    mk = np.concatenate(mk) if with_plate else np.zeros((0, 6))
     zc0 = z0 if z0 is not None else 0.5 * t + 0.5 * dx
     # granular particles inside the plate's body at the start (none when it starts above)
     inside = ((np.abs(soil[:, 0]) <= a + 0.5 * dx) & ((slab is not None) | (soil[:, 1] <= b + 0.5 * dx))
               & (np.abs(soil[:, 2] - zc0) <= 0.5 * t + 0.5 * dx))
-    soil = soil[~inside]
+    if with_plate:
+        soil = soil[~inside]
     ns, nw, nm = len(soil), len(walls), len(mk)
     pos = np.concatenate([soil, walls, np.stack([mk[:, 0], mk[:, 1], zc0 + mk[:, 2]], -1)])
     kind = np.concatenate([np.full(ns, SOIL), np.full(nw, WALL), np.full(nm, LEG)]).astype(np.int8)
@@ -983,8 +1043,10 @@ class Solver3D:
         self.pb = np.full((nr, 3), np.inf)
         n_soil = int(np.sum(sc.kind == SOIL))
         n_bnd = nr - n_soil
-        self.ss = np.zeros((int(55 * (n_soil + 0.5 * ng_cap)) + 64, 2), np.int64)
-        self.sb = np.zeros((int(60 * min(n_bnd + ng_cap, n_soil + ng_cap)) + 64, 2), np.int64)
+        self.ss = np.zeros(int(55 * (n_soil + 0.5 * ng_cap)) + 64, np.int32)
+        self.sb = np.zeros(int(60 * min(n_bnd + ng_cap, n_soil + ng_cap)) + 64, np.int32)
+        self.sso = np.zeros(n + 1, np.int64)
+        self.sbo = np.zeros(n + 1, np.int64)
         self._pair_scratch()
         self.lg = np.zeros((n, 10))
         self.psig = np.zeros((n, 6))
@@ -1044,8 +1106,8 @@ class Solver3D:
     def _grow(self, code):
         """Enlarge the array that did not fit (and force a rebuild)."""
         if code == PAIRS_FULL:
-            self.ss = np.zeros((int(1.5 * len(self.ss)), 2), np.int64)
-            self.sb = np.zeros((int(1.5 * len(self.sb)), 2), np.int64)
+            self.ss = np.zeros(int(1.5 * len(self.ss)), np.int32)
+            self.sb = np.zeros(int(1.5 * len(self.sb)), np.int32)
             self._pair_scratch()
         else:
             extra = max(len(self.pos) - self.nr, 64)
@@ -1068,6 +1130,8 @@ class Solver3D:
             s[:len(self.src)] = self.src
             self.src = s
             self.cell_idx = np.zeros(n, np.int64)
+            self.sso = np.zeros(n + 1, np.int64)
+            self.sbo = np.zeros(n + 1, np.int64)
         self.ip[I_BUILDS] = 0
 
     def advance(self, zc, vz, damp) -> np.ndarray:
@@ -1083,7 +1147,8 @@ class Solver3D:
                               self.vel, self.gv, self.rho, self.mass, self.sig, self.kind,
                               self.nz, self.dcl, self.grd, self.side, self.src, self.gs,
                               self.go, self.boz, self.lidx, self.pb, self.cell_start,
-                              self.cell_idx, self.ss, self.sb, self.fss, self.fsb, self.wsb,
+                              self.cell_idx, self.ss, self.sso, self.sb, self.sbo, self.fss,
+                              self.fsb, self.wsb,
                               self.lg, self.acc, self.cont, self.bacc, self.psig, self.fp,
                               self.ip)
             done += int(d)
