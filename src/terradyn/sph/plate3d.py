@@ -405,6 +405,23 @@ def _boundary_pass(pos, vel, gv, rho, sig, kind, nz, dcl, sb, sbo, wsb, reuse, b
                 gv[w, c] = vel[w, c]
 
 
+@njit(inline="always", fastmath=True)
+def _add_grad(lg, row, m, vol, dvx, dvy, dvz, gx, gy, gz):
+    """One pair's pass-1 terms for particle ``row`` (partner mass m, volume vol; dv = v_row -
+    v_partner, grad W = (gx, gy, gz) seen from row): d rho += m dv . grad W, l -= vol dv (x)
+    grad W."""
+    lg[row, 0] += m * (dvx * gx + dvy * gy + dvz * gz)
+    lg[row, 1] -= vol * dvx * gx
+    lg[row, 2] -= vol * dvx * gy
+    lg[row, 3] -= vol * dvx * gz
+    lg[row, 4] -= vol * dvy * gx
+    lg[row, 5] -= vol * dvy * gy
+    lg[row, 6] -= vol * dvy * gz
+    lg[row, 7] -= vol * dvz * gx
+    lg[row, 8] -= vol * dvz * gy
+    lg[row, 9] -= vol * dvz * gz
+
+
 @njit(cache=True, fastmath=True)
 def _strain_pass(pos, vel, gv, rho, mass, sig, kind, nz, dcl, side, ss, sso, sb, sbo, fss, fsb,
                  lg, fp, ip):
@@ -424,22 +441,9 @@ def _strain_pass(pos, vel, gv, rho, mass, sig, kind, nz, dcl, side, ss, sso, sb,
         xa = pos[a, 0]
         ya = pos[a, 1]
         za = pos[a, 2]
-        vxa = vel[a, 0]
-        vya = vel[a, 1]
-        vza = vel[a, 2]
         sa = side[a]
-        va = mass[a] / rho[a]
         ma = mass[a]
-        d0 = 0.0
-        l1 = 0.0
-        l2 = 0.0
-        l3 = 0.0
-        l4 = 0.0
-        l5 = 0.0
-        l6 = 0.0
-        l7 = 0.0
-        l8 = 0.0
-        l9 = 0.0
+        va = ma / rho[a]
         for k in range(sso[a], sso[a + 1]):
             b = ss[k]
             fss[k] = 0.0
@@ -454,36 +458,13 @@ def _strain_pass(pos, vel, gv, rho, mass, sig, kind, nz, dcl, side, ss, sso, sb,
             t = 1.0 - 0.5 * math.sqrt(r2) * inv_h
             fdw = dwc * t * t * t
             fss[k] = fdw
-            gx = fdw * rx
-            gy = fdw * ry
-            gzz = fdw * rz
-            dvx = vxa - vel[b, 0]
-            dvy = vya - vel[b, 1]
-            dvz = vza - vel[b, 2]
-            dvg = dvx * gx + dvy * gy + dvz * gzz
+            dvx = vel[a, 0] - vel[b, 0]
+            dvy = vel[a, 1] - vel[b, 1]
+            dvz = vel[a, 2] - vel[b, 2]
             mb = mass[b]
-            vb = mb / rho[b]
-            d0 += mb * dvg
-            l1 -= vb * dvx * gx
-            l2 -= vb * dvx * gy
-            l3 -= vb * dvx * gzz
-            l4 -= vb * dvy * gx
-            l5 -= vb * dvy * gy
-            l6 -= vb * dvy * gzz
-            l7 -= vb * dvz * gx
-            l8 -= vb * dvz * gy
-            l9 -= vb * dvz * gzz
-            if b < nr:
-                lg[b, 0] += ma * dvg
-                lg[b, 1] -= va * dvx * gx
-                lg[b, 2] -= va * dvx * gy
-                lg[b, 3] -= va * dvx * gzz
-                lg[b, 4] -= va * dvy * gx
-                lg[b, 5] -= va * dvy * gy
-                lg[b, 6] -= va * dvy * gzz
-                lg[b, 7] -= va * dvz * gx
-                lg[b, 8] -= va * dvz * gy
-                lg[b, 9] -= va * dvz * gzz
+            _add_grad(lg, a, mb, mb / rho[b], dvx, dvy, dvz, fdw * rx, fdw * ry, fdw * rz)
+            if b < nr:  # grad_b W = -grad_a W, v_b - v_a = -dv: the same products
+                _add_grad(lg, b, ma, va, dvx, dvy, dvz, fdw * rx, fdw * ry, fdw * rz)
         for k in range(sbo[a], sbo[a + 1]):
             w = sb[k]
             fsb[k] = 0.0
@@ -498,35 +479,9 @@ def _strain_pass(pos, vel, gv, rho, mass, sig, kind, nz, dcl, side, ss, sso, sb,
             t = 1.0 - 0.5 * math.sqrt(r2) * inv_h
             fdw = dwc * t * t * t
             fsb[k] = fdw
-            gx = fdw * rx
-            gy = fdw * ry
-            gzz = fdw * rz
-            dvx = vxa - gv[w, 0]
-            dvy = vya - gv[w, 1]
-            dvz = vza - gv[w, 2]
-            dvg = dvx * gx + dvy * gy + dvz * gzz
             mw = mass[w]
-            vw = mw / rho[w]
-            d0 += mw * dvg
-            l1 -= vw * dvx * gx
-            l2 -= vw * dvx * gy
-            l3 -= vw * dvx * gzz
-            l4 -= vw * dvy * gx
-            l5 -= vw * dvy * gy
-            l6 -= vw * dvy * gzz
-            l7 -= vw * dvz * gx
-            l8 -= vw * dvz * gy
-            l9 -= vw * dvz * gzz
-        lg[a, 0] += d0
-        lg[a, 1] += l1
-        lg[a, 2] += l2
-        lg[a, 3] += l3
-        lg[a, 4] += l4
-        lg[a, 5] += l5
-        lg[a, 6] += l6
-        lg[a, 7] += l7
-        lg[a, 8] += l8
-        lg[a, 9] += l9
+            _add_grad(lg, a, mw, mw / rho[w], vel[a, 0] - gv[w, 0], vel[a, 1] - gv[w, 1],
+                      vel[a, 2] - gv[w, 2], fdw * rx, fdw * ry, fdw * rz)
     dt = fp[F_DT]
     for i in range(nr):
         if kind[i] != SOIL:
@@ -537,6 +492,20 @@ def _strain_pass(pos, vel, gv, rho, mass, sig, kind, nz, dcl, side, ss, sso, sb,
             lg[i, 7], lg[i, 8], lg[i, 9], sig[i, S_XX], sig[i, S_YY], sig[i, S_ZZ],
             sig[i, S_XY], sig[i, S_XZ], sig[i, S_YZ], dt, fp[F_G], fp[F_K], fp[F_APHI],
             fp[F_KC], fp[F_RMIN], fp[F_RMAX], fp[F_APSI], fp[F_RCRIT])
+
+
+@njit(inline="always", fastmath=True)
+def _stress_term3(psig, a, b, pi_ij, gx, gy, gz):
+    """The momentum equation's pair term per unit mass of b: (sigma_a / rho_a^2 + sigma_b /
+    rho_b^2 - Pi_ab I) . grad_a W (psig: sigma / rho^2 rows), as (tx, ty, tz)."""
+    txx = psig[a, S_XX] + psig[b, S_XX] - pi_ij
+    tyy = psig[a, S_YY] + psig[b, S_YY] - pi_ij
+    tzz = psig[a, S_ZZ] + psig[b, S_ZZ] - pi_ij
+    txy = psig[a, S_XY] + psig[b, S_XY]
+    txz = psig[a, S_XZ] + psig[b, S_XZ]
+    tyz = psig[a, S_YZ] + psig[b, S_YZ]
+    return (txx * gx + txy * gy + txz * gz, txy * gx + tyy * gy + tyz * gz,
+            txz * gx + tyz * gy + tzz * gz)
 
 
 @njit(cache=True, fastmath=True)
@@ -570,12 +539,6 @@ def _accel_pass(pos, vel, rho, mass, sig, psig, kind, nz, dcl, grd, ss, sso, sb,
         vza = vel[a, 2]
         ra = rho[a]
         ma = mass[a]
-        pxx = psig[a, S_XX]
-        pyy = psig[a, S_YY]
-        pzz = psig[a, S_ZZ]
-        pxy = psig[a, S_XY]
-        pxz = psig[a, S_XZ]
-        pyz = psig[a, S_YZ]
         ax = 0.0
         ay = 0.0
         az = 0.0
@@ -587,23 +550,12 @@ def _accel_pass(pos, vel, rho, mass, sig, psig, kind, nz, dcl, grd, ss, sso, sb,
             rx = xa - pos[b, 0]
             ry = ya - pos[b, 1]
             rz = za - pos[b, 2]
-            gx = fdw * rx
-            gy = fdw * ry
-            gzz = fdw * rz
             vdotr = (vxa - vel[b, 0]) * rx + (vya - vel[b, 1]) * ry + (vza - vel[b, 2]) * rz
             pi_ij = 0.0
             if vdotr < 0.0:
                 mu = h * vdotr / (rx * rx + ry * ry + rz * rz + 0.01 * h2)
                 pi_ij = (-ava * c0 * mu + avb * mu * mu) / (0.5 * (ra + rho[b]))
-            txx = pxx + psig[b, S_XX] - pi_ij
-            tyy = pyy + psig[b, S_YY] - pi_ij
-            tzz = pzz + psig[b, S_ZZ] - pi_ij
-            txy = pxy + psig[b, S_XY]
-            txz = pxz + psig[b, S_XZ]
-            tyz = pyz + psig[b, S_YZ]
-            fx = txx * gx + txy * gy + txz * gzz
-            fy = txy * gx + tyy * gy + tyz * gzz
-            fz = txz * gx + tyz * gy + tzz * gzz
+            fx, fy, fz = _stress_term3(psig, a, b, pi_ij, fdw * rx, fdw * ry, fdw * rz)
             mb = mass[b]
             ax += mb * fx
             ay += mb * fy
@@ -625,19 +577,11 @@ def _accel_pass(pos, vel, rho, mass, sig, psig, kind, nz, dcl, grd, ss, sso, sb,
             rx = xa - pos[w, 0]
             ry = ya - pos[w, 1]
             rz = za - pos[w, 2]
-            gx = fdw * rx
-            gy = fdw * ry
-            gzz = fdw * rz
-            txx = pxx + psig[w, S_XX]
-            tyy = pyy + psig[w, S_YY]
-            tzz = pzz + psig[w, S_ZZ]
-            txy = pxy + psig[w, S_XY]
-            txz = pxz + psig[w, S_XZ]
-            tyz = pyz + psig[w, S_YZ]
+            tx, ty, tz = _stress_term3(psig, a, w, 0.0, fdw * rx, fdw * ry, fdw * rz)
             mw = mass[w]
-            pax = mw * (txx * gx + txy * gy + txz * gzz)
-            pay = mw * (txy * gx + tyy * gy + tyz * gzz)
-            paz = mw * (txz * gx + tyz * gy + tzz * gzz)
+            pax = mw * tx
+            pay = mw * ty
+            paz = mw * tz
             ax += pax
             ay += pay
             az += paz
