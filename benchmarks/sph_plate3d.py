@@ -28,7 +28,7 @@ import numpy as np
 from terradyn.io import atomic_write_text
 from terradyn.sph.calibration import PLATE_TEST, plate_slope
 from terradyn.sph.materials import from_medium
-from terradyn.sph.plate3d import PLATE_LENGTH, PLATE_WIDTH, plate_push3d, shape_factor
+from terradyn.sph.plate3d import PLATE_LENGTH, PLATE_WIDTH, fit_alpha, plate_push3d, shape_factor
 from terradyn.sph.state import SPHConfig
 from terradyn.sph.validation import alpha_z_plate_measured
 from terradyn.units import DEG, N_PER_CM3
@@ -41,7 +41,7 @@ DEFAULT = ["3 mm glass CP:slab", "3 mm glass CP:2d", "3 mm glass CP:finite", "po
 SLAB = 4
 
 
-def run_point(medium: str, kind: str, dx: float) -> dict:
+def run_point(medium: str, kind: str, dx: float, partial=None) -> dict:
     mat = from_medium(medium)
     cfg = SPHConfig(dx=dx)
     t0 = time.perf_counter()
@@ -59,7 +59,7 @@ def run_point(medium: str, kind: str, dx: float) -> dict:
                       depth=1.5 * (PLATE_TEST["depth_m"] + 2 * PLATE_LENGTH))
         elif kind != "finite":
             raise SystemExit(f"error: kind must be 2d, slab, finite or finite-big, got {kind!r}")
-        r = plate_push3d(mat, config=cfg, **kw)
+        r = plate_push3d(mat, config=cfg, partial=partial, **kw)
         fz = np.asarray(r["fz_quarter_N"])
         out = {"alpha_z_N_cm3": r["alpha_z"] / N_PER_CM3, "slope_N_cm3": r["slope"] / N_PER_CM3,
                "intercept_kPa": r["intercept_Pa"] / 1e3, "depth_m": r["depth"].round(6).tolist(),
@@ -117,7 +117,16 @@ def main() -> None:
             print(f"{spec}: done ({old[0]['alpha_z_N_cm3']:.4f} N/cm^3), skipped", flush=True)
             continue
         print(f"{spec}: running ...", flush=True)
-        p = run_point(medium, kind, a.dx_mm * 1e-3)
+
+        def partial(d, st, spec=spec):  # the curve so far, in case the run is stopped
+            fit = fit_alpha(d, st, PLATE_TEST["fit_from_m"])
+            res.setdefault("partial", {})[spec] = {
+                "depth_reached_m": float(d[-1]), "alpha_z_so_far_N_cm3": fit["alpha_z"] / N_PER_CM3,
+                "depth_m": d.round(6).tolist(), "stress_kPa": (st / 1e3).round(5).tolist()}
+            atomic_write_text(OUT, json.dumps(res, indent=1))
+
+        p = run_point(medium, kind, a.dx_mm * 1e-3, partial)
+        res.get("partial", {}).pop(spec, None)
         res["points"] = [q for q in res["points"] if (q["medium"], q["kind"], q["dx_mm"]) != key]
         res["points"].append(p)
         res["summary"] = summary(res["points"])

@@ -100,7 +100,7 @@ def test_geostatic_bed_at_rest_stays_at_rest():
 
 def _push(mirror_x):
     cfg = SPHConfig(dx=5e-3, settle_time=0.005)
-    return P.plate_push3d("3 mm glass CP", config=cfg, half_x=0.03, half_y=0.02, depth=0.025,
+    return P.plate_push3d("3 mm glass CP", config=cfg, half_x=0.03, half_y=0.018, depth=0.02,
                           speed=0.2, push_depth=0.002, n_samples=5, fit_from=0.0,
                           mirror_x=mirror_x)
 

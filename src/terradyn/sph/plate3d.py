@@ -1149,14 +1149,16 @@ def plate_push3d(medium: str | GranularMaterial = "3 mm glass CP", *, dx: float 
                  depth: float | None = None, speed: float = PLATE_TEST["speed_m_s"],
                  push_depth: float = PLATE_TEST["depth_m"], n_samples: int = PLATE_TEST["n_samples"],
                  fit_from: float = PLATE_TEST["fit_from_m"], realization: int = 0,
-                 mirror_x: bool = True, progress=None) -> dict:
+                 mirror_x: bool = True, progress=None, partial=None) -> dict:
     """The plate test of :data:`~terradyn.sph.calibration.PLATE_TEST` in 3D: the plate
     pushed straight down at ``speed`` from dx/2 above the surface to ``push_depth`` (centre
     depth), sampled at ``n_samples`` times; stress = whole-plate vertical force / area.
     Returns depth (m), stress (Pa), alpha_z (N/m^3, through the origin over depths >
     fit_from, as the 2D calibration fits it), the free slope and intercept, the lateral
     forces, counts and timings. ``slab``: the plane-strain configuration (see
-    :func:`plate_scene`). ``progress(done_s, total_s)`` every block of steps."""
+    :func:`plate_scene`). ``progress(done_s, total_s)`` every block of steps; ``partial(depth,
+    stress)``: the samples reached so far (m, Pa), after every block (a long run that is
+    stopped still leaves its curve)."""
     positive("speed", speed, "m/s")
     positive("push_depth", push_depth, "m")
     integer("n_samples", n_samples, 3)
@@ -1176,15 +1178,23 @@ def plate_push3d(medium: str | GranularMaterial = "3 mm glass CP", *, dx: float 
     damp = np.where(settling, s.settle_damping, 0.0)
     forces = np.zeros((nsteps, 3))
     block = 2000
+    fac = force_factor(sc)
+    area = plate_area(sc)
+    t = np.linspace(0.0, T, n_samples)
     for k in range(0, nsteps, block):
         forces[k:k + block] = s.advance(zc[k:k + block], vz[k:k + block], damp[k:k + block])
         if progress is not None:
             progress(min(k + block, nsteps) * s.dt, nsteps * s.dt)
+        if partial is not None:
+            upto = min(k + block, nsteps)
+            keep = ~settling[:upto]
+            if keep.sum() > 1:
+                t_now = ts[upto - 1] - s.settle_time
+                tt = t[t <= t_now]
+                partial(-(z0 - speed * tt), np.interp(tt, ts[:upto][keep] - s.settle_time,
+                                                      forces[:upto][keep, 2]) * fac / area)
     keep = ~settling
     t_rec = ts[keep] - s.settle_time
-    fac = force_factor(sc)
-    area = plate_area(sc)
-    t = np.linspace(0.0, T, n_samples)
     fz = np.interp(t, t_rec, forces[keep, 2]) * fac
     d = -(z0 - speed * t)
     stress = fz / area
