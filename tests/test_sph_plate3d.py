@@ -16,7 +16,7 @@ from terradyn.sph.state import SOIL, SPHConfig
 from terradyn.units import DEG, G
 
 
-def _plane_strain_history(mat, n=400, seed=1, dt=1e-4):
+def _plane_strain_history(n=400, seed=1):
     """Random plane-strain velocity gradients (x-z) large enough to yield, load and unload,
     and reach the tension cut-off."""
     rng = np.random.default_rng(seed)
@@ -31,7 +31,7 @@ def test_3d_drucker_prager_reduces_to_the_2d_update_for_plane_strain(medium, dil
     mat = from_medium(medium, dilatancy=dilatancy)
     f2 = physics.dp_update.py_func  # (its compiled form is inlined into the 2D loops)
     f3 = P.dp_update3 if compiled else P.dp_update3.py_func
-    L, drho = _plane_strain_history(mat)
+    L, drho = _plane_strain_history()
     dt = 1e-4
     consts = (dt, mat.shear_modulus, mat.bulk_modulus, mat.alpha_phi, mat.k_c, 0.9 * mat.density,
               1.1 * mat.density, mat.alpha_psi, mat.dilation_limit)

@@ -161,7 +161,7 @@ def _cell3(px, py, pz, fp, ip):
 
 
 @njit(cache=True)
-def _add_ghost(g, s, sx, sy, oy, pos, src, gs, go):
+def _add_ghost(g, s, sx, sy, oy, src, gs, go):
     src[g] = s
     gs[g, 0] = sx
     gs[g, 1] = sy
@@ -195,19 +195,19 @@ def _make_ghosts(pos, kind, src, gs, go, fp, ip):
         if g + need > cap:
             return -1
         if nx:
-            _add_ghost(nr + g, s, -1.0, 1.0, 0.0, pos, src, gs, go)
+            _add_ghost(nr + g, s, -1.0, 1.0, 0.0, src, gs, go)
             g += 1
         if n0:
-            _add_ghost(nr + g, s, 1.0, -1.0, 0.0, pos, src, gs, go)
+            _add_ghost(nr + g, s, 1.0, -1.0, 0.0, src, gs, go)
             g += 1
             if nx:
-                _add_ghost(nr + g, s, -1.0, -1.0, 0.0, pos, src, gs, go)
+                _add_ghost(nr + g, s, -1.0, -1.0, 0.0, src, gs, go)
                 g += 1
         if n1:
-            _add_ghost(nr + g, s, 1.0, -1.0, 2.0 * ly, pos, src, gs, go)
+            _add_ghost(nr + g, s, 1.0, -1.0, 2.0 * ly, src, gs, go)
             g += 1
             if nx:
-                _add_ghost(nr + g, s, -1.0, -1.0, 2.0 * ly, pos, src, gs, go)
+                _add_ghost(nr + g, s, -1.0, -1.0, 2.0 * ly, src, gs, go)
                 g += 1
     return g
 
@@ -872,7 +872,7 @@ def plate_scene(medium: str | GranularMaterial = "3 mm glass CP", *, dx: float =
                  f"a 3D bed of about {n_est:,} particles (dx = {dx * 1e3:g} mm)")
     x_lo = 0.0 if mirror_x else -hx
     soil = _grid3(x_lo, hx, 0.0, hy, -D, 0.0, dx)
-    top = snap_up = max(int(round(0.03 / dx)), 1) * dx
+    top = max(int(round(0.03 / dx)), 1) * dx  # walls 3 cm above the surface (as in 2D)
     wx_lo = x_lo if mirror_x else x_lo - layers * dx
     wy_hi = hy if slab is not None else hy + layers * dx
     walls = [_grid3(wx_lo, hx + layers * dx, 0.0, wy_hi, -D - layers * dx, -D, dx),
@@ -932,7 +932,7 @@ def plate_scene(medium: str | GranularMaterial = "3 mm glass CP", *, dx: float =
            hy + (0.0 if slab is not None else layers * dx), -D - layers * dx)
     meta = {"scene": "plate3d", "dx_m": dx, "half_x_m": hx, "half_y_m": hy, "depth_m": D,
             "slab_layers": slab, "mirror_x": mirror_x, "plate_m": [length, width, thickness],
-            "z0_m": zc0, "granular": ns, "wall": nw, "markers": nm, "wall_top_m": snap_up}
+            "z0_m": zc0, "granular": ns, "wall": nw, "markers": nm, "wall_top_m": top}
     return Scene3D(pos, kind, mass, rho, sig, np.zeros((n, 3)), mat, cfg, nzv, dcl, grd,
                    mk[:, 2].copy(), mirror=(mirror_x, True, slab is not None), ly=hy, box=box,
                    plate={"a": a, "b": b, "t": t, "slab": slab is not None, "z0": zc0},
