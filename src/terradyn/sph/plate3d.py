@@ -1,0 +1,1217 @@
+"""A minimal 3D SPH of the plate test (issue 17): is the 2D plate too weak because it is 2D?
+
+The 2D model (:mod:`terradyn.sph.physics`) is plane strain: its plate is a strip, infinitely
+long out of plane. Li 2013's plate is 3.81 x 2.54 cm, and a finite footing bears more than a
+strip (bearing-capacity shape factors > 1). This module runs the *same physics* in 3D so that
+geometry is the only change:
+
+* Wendland C2 kernel in 3D, W = 21 / (16 pi h^3) (1 - q/2)^4 (2 q + 1), support 2h, h = hdx dx
+  (:class:`~terradyn.sph.state.SPHConfig` defaults: 1.3 dx); Verlet pair lists from a cell
+  grid, rebuilt when a particle has moved half the skin (:data:`~terradyn.sph.neighbours.SKIN`).
+* The 2D integrator: per step the boundary particles' state is extrapolated, pass 1 takes the
+  velocity gradient from v^n and updates density and stress (:func:`dp_update3`), the boundary
+  state is extrapolated again, pass 2 takes the accelerations from sigma^{n+1}, kicks and
+  drifts (symplectic Euler); dt = cfl h / (c + v_plate); damped settling (15 bed-depth /
+  sound-speed transits, damping 2 c / depth), the plate waiting at its start.
+* The 2D momentum equation and Monaghan viscosity (between granular particles only), the same
+  material (:func:`terradyn.sph.materials.from_medium`: density, E, nu, alpha_phi, k_c, K0),
+  and :func:`dp_update3`: the Drucker-Prager update of :func:`terradyn.sph.physics.dp_update`
+  with the full 3D stress (six components, Jaumann rate with the 3D spin), the same tension
+  cut-off, return and density clamp [0.9, 1.1] rho0 (the 2D code's).
+* Boundaries as in 2D: dummy particles whose stress and velocity are extrapolated from the
+  granular particles around them (Adami, Hu & Adams 2012; no-slip ghost velocity), a rough
+  floor and far walls; the plate is rigid, each face with its own ``wall_layers`` layers of
+  markers from dx/2 inside it, a marker sees material on its own side only and material on
+  the two sides of the plate does not interact through it (the 2D side test), the 2D contact
+  guard at dx/4 (not within 1.5 dx of the edges). Force on the plate: the sum of the
+  granular -> marker pair forces plus the guard's momentum, as in 2D.
+* Symmetry planes x = 0 and y = 0 (and y = Ly for the plane-strain slab) are frictionless
+  mirrors: every particle within the list radius of a plane has a mirror ghost (position,
+  velocity and stress reflected: sigma_xy, sigma_xz change sign across x = 0), rebuilt with the
+  lists and refreshed from its source before each use; a particle that crosses a plane is
+  reflected back. Only a quarter of the bed and plate is simulated, and the vertical force on
+  the whole plate is 4 x the quarter's (the quarter's particles act on all markers, ghosts
+  included, which by symmetry is the whole plate's force / 4).
+
+Serial (one thread: Numba ``njit``); each granular pair is visited once per pass and acts on
+both particles. Entry points: :func:`plate_scene` (the bed and plate), :func:`plate_push3d`
+(the plate test of :data:`terradyn.sph.calibration.PLATE_TEST`, its alpha_z as the 2D
+``plate_slope`` fits it). ``benchmarks/sph_plate3d.py`` runs the study (docs/sph.md, "3D plate
+test").
+"""
+from __future__ import annotations
+
+import math
+import time
+from dataclasses import dataclass, field
+
+import numpy as np
+from numba import njit
+
+from ..errors import InputError, check_memory, in_range, integer, positive
+from ..units import CM, G
+from .calibration import PLATE_TEST
+from .materials import GranularMaterial, material as _material
+from .neighbours import SKIN
+from .state import LEG, LOST, SOIL, WALL, SPHConfig
+
+_W3D = 21.0 / (16.0 * math.pi)
+#: Columns of the stress array (N, 6), tension positive.
+S_XX, S_YY, S_ZZ, S_XY, S_XZ, S_YZ = range(6)
+#: Memory per particle (state, ghosts, pair lists, work arrays), bytes: an upper estimate.
+PARTICLE_BYTES_3D = 2048
+#: Most particles a plate run may have (about 40 min per 2D-equivalent plate test per 10^5
+#: on one core): a guard against typos such as dx = 0.4 mm.
+MAX_PARTICLES = 2_000_000
+#: Li 2013's plate (m): length (along x), width (along y), thickness.
+PLATE_LENGTH, PLATE_WIDTH, PLATE_THICKNESS = 3.81 * CM, 2.54 * CM, 0.64 * CM
+
+# float parameters of the step kernel, by index
+FP = ("h", "dt", "shear_mod", "bulk_mod", "alpha_phi", "k_c", "rho_min", "rho_max", "alpha_psi",
+      "rho_crit", "c0", "av_alpha", "av_beta", "gz", "half_t", "gap", "max_push", "vmax",
+      "plate_a", "plate_b", "ly", "x_lo", "y_lo", "z_lo", "inv_cell", "rlist", "x_hi_box",
+      "y_hi_box", "z_lo_box", "side_reach", "x_lo_box")
+(F_H, F_DT, F_G, F_K, F_APHI, F_KC, F_RMIN, F_RMAX, F_APSI, F_RCRIT, F_C0, F_AVA, F_AVB, F_GZ,
+ F_HALFT, F_GAP, F_MAXPUSH, F_VMAX, F_PA, F_PB, F_LY, F_XLO, F_YLO, F_ZLO, F_INVC, F_RLIST,
+ F_XHIB, F_YHIB, F_ZLOB, F_SREACH, F_XLOB) = range(len(FP))
+IP = ("nr", "ng", "nss", "nsb", "ncx", "ncy", "ncz", "mirror_x", "mirror_y0", "mirror_y1",
+      "slab", "builds", "has_plate", "bad", "lost")
+(I_NR, I_NG, I_NSS, I_NSB, I_NCX, I_NCY, I_NCZ, I_MX, I_MY0, I_MY1, I_SLAB, I_BUILDS, I_PLATE,
+ I_BAD, I_LOST) = range(len(IP))
+#: Kernel return codes.
+OK, UNSTABLE, PAIRS_FULL, GHOSTS_FULL = 0, 1, 2, 3
+
+
+# ------------------------------------------------------------------------ constitutive law
+@njit(cache=True, fastmath=True)
+def dp_update3(rho, drho, lxx, lxy, lxz, lyx, lyy, lyz, lzx, lzy, lzz, sxx, syy, szz, sxy, sxz,
+               syz, dt, shear_mod, bulk_mod, alpha_phi, k_c, rho_min, rho_max, alpha_psi,
+               rho_crit):
+    """:func:`terradyn.sph.physics.dp_update` with the full 3D stress: density (clamped to
+    [rho_min, rho_max]), Jaumann rate + Hooke's law, the Bui et al. (2008) tension cut-off and
+    stress scaling onto sqrt(J2) + alpha_phi I1 - k_c = 0 (non-dilatant; or the
+    non-associated closed-form return while denser than rho_crit when alpha_psi > 0). l_ab =
+    dv_a / dx_b. Returns (rho, sxx, syy, szz, sxy, sxz, syz). For a plane-strain history (l_y*
+    = l_*y = 0, sxy = syz = 0) it gives the numbers of the 2D update."""
+    rho = min(max(rho + dt * drho, rho_min), rho_max)
+    exy = 0.5 * (lxy + lyx)
+    exz = 0.5 * (lxz + lzx)
+    eyz = 0.5 * (lyz + lzy)
+    wxy = 0.5 * (lxy - lyx)
+    wxz = 0.5 * (lxz - lzx)
+    wyz = 0.5 * (lyz - lzy)
+    ev = lxx + lyy + lzz
+    third = ev / 3.0
+    # Jaumann terms sigma_ac w_bc + sigma_cb w_ac (w antisymmetric)
+    d_xx = 2.0 * (sxy * wxy + sxz * wxz) + 2.0 * shear_mod * (lxx - third) + bulk_mod * ev
+    d_yy = 2.0 * (syz * wyz - sxy * wxy) + 2.0 * shear_mod * (lyy - third) + bulk_mod * ev
+    d_zz = -2.0 * (sxz * wxz + syz * wyz) + 2.0 * shear_mod * (lzz - third) + bulk_mod * ev
+    d_xy = wxy * (syy - sxx) + (syz * wxz - sxz * wyz) + 2.0 * shear_mod * exy
+    d_xz = wxz * (szz - sxx) + (syz * wxy - sxy * wyz) + 2.0 * shear_mod * exz
+    d_yz = wyz * (szz - syy) - (sxy * wxz + sxz * wxy) + 2.0 * shear_mod * eyz
+    s_xx = sxx + dt * d_xx
+    s_yy = syy + dt * d_yy
+    s_zz = szz + dt * d_zz
+    s_xy = sxy + dt * d_xy
+    s_xz = sxz + dt * d_xz
+    s_yz = syz + dt * d_yz
+    i1 = s_xx + s_zz + s_yy
+    if -alpha_phi * i1 + k_c < 0.0:  # tension cut-off
+        shift = (i1 - k_c / alpha_phi) / 3.0
+        s_xx -= shift
+        s_zz -= shift
+        s_yy -= shift
+        i1 = k_c / alpha_phi
+    m = i1 / 3.0
+    dxx = s_xx - m
+    dyy = s_yy - m
+    dzz = s_zz - m
+    j2 = 0.5 * (dxx * dxx + dzz * dzz + dyy * dyy) + s_xz * s_xz + s_xy * s_xy + s_yz * s_yz
+    lim = -alpha_phi * i1 + k_c
+    if alpha_psi > 0.0 and rho > rho_crit and j2 > lim * lim and j2 > 0.0:
+        sj = math.sqrt(j2)
+        dlam = (sj - lim) / (shear_mod + 9.0 * bulk_mod * alpha_phi * alpha_psi)
+        if sj > shear_mod * dlam:
+            rr = 1.0 - shear_mod * dlam / sj
+            m = (i1 - 9.0 * bulk_mod * alpha_psi * dlam) / 3.0
+        else:
+            rr = 0.0
+            m = k_c / (3.0 * alpha_phi) if alpha_phi > 0.0 else m
+        return (rho, dxx * rr + m, dyy * rr + m, dzz * rr + m, s_xy * rr, s_xz * rr,
+                s_yz * rr)
+    if j2 > lim * lim and j2 > 0.0:
+        rr = lim / math.sqrt(j2)
+        dxx *= rr
+        dyy *= rr
+        dzz *= rr
+        s_xy *= rr
+        s_xz *= rr
+        s_yz *= rr
+    return rho, dxx + m, dyy + m, dzz + m, s_xy, s_xz, s_yz
+
+
+# ----------------------------------------------------------------------- neighbour search
+@njit(cache=True)
+def _cell3(px, py, pz, fp, ip):
+    inv = fp[F_INVC]
+    cx = min(max(int((px - fp[F_XLO]) * inv), 0), ip[I_NCX] - 1)
+    cy = min(max(int((py - fp[F_YLO]) * inv), 0), ip[I_NCY] - 1)
+    cz = min(max(int((pz - fp[F_ZLO]) * inv), 0), ip[I_NCZ] - 1)
+    return cx, cy, cz
+
+
+@njit(cache=True)
+def _add_ghost(g, s, sx, sy, oy, src, gs, go):
+    src[g] = s
+    gs[g, 0] = sx
+    gs[g, 1] = sy
+    gs[g, 2] = 1.0
+    go[g, 0] = 0.0
+    go[g, 1] = oy
+    go[g, 2] = 0.0
+
+
+@njit(cache=True)
+def _make_ghosts(pos, kind, src, gs, go, fp, ip):
+    """Mirror ghosts of every real particle within the list radius of a symmetry plane
+    (x = 0; y = 0; y = Ly for the slab), and of the x = 0 ghosts across the y planes (the
+    corners). Returns the ghost count, or -1 when they do not fit."""
+    nr = ip[I_NR]
+    cap = pos.shape[0] - nr
+    rl = fp[F_RLIST]
+    ly = fp[F_LY]
+    mx = ip[I_MX] != 0
+    my0 = ip[I_MY0] != 0
+    my1 = ip[I_MY1] != 0
+    g = 0
+    for s in range(nr):
+        if kind[s] == LOST:
+            continue
+        nx = mx and pos[s, 0] < rl
+        n0 = my0 and pos[s, 1] < rl
+        n1 = my1 and pos[s, 1] > ly - rl
+        need = (1 if nx else 0) * (1 + (1 if n0 else 0) + (1 if n1 else 0)) + (1 if n0 else 0) \
+            + (1 if n1 else 0)
+        if g + need > cap:
+            return -1
+        if nx:
+            _add_ghost(nr + g, s, -1.0, 1.0, 0.0, src, gs, go)
+            g += 1
+        if n0:
+            _add_ghost(nr + g, s, 1.0, -1.0, 0.0, src, gs, go)
+            g += 1
+            if nx:
+                _add_ghost(nr + g, s, -1.0, -1.0, 0.0, src, gs, go)
+                g += 1
+        if n1:
+            _add_ghost(nr + g, s, 1.0, -1.0, 2.0 * ly, src, gs, go)
+            g += 1
+            if nx:
+                _add_ghost(nr + g, s, -1.0, -1.0, 2.0 * ly, src, gs, go)
+                g += 1
+    return g
+
+
+@njit(cache=True)
+def _update_ghosts(pos, vel, gv, rho, mass, sig, kind, nz, dcl, grd, side, src, gs, go, ip):
+    """Refresh every ghost from its source (reflected position, velocities and stress)."""
+    nr = ip[I_NR]
+    for g in range(nr, nr + ip[I_NG]):
+        s = src[g]
+        sx = gs[g, 0]
+        sy = gs[g, 1]
+        pos[g, 0] = sx * pos[s, 0] + go[g, 0]
+        pos[g, 1] = sy * pos[s, 1] + go[g, 1]
+        pos[g, 2] = pos[s, 2]
+        vel[g, 0] = sx * vel[s, 0]
+        vel[g, 1] = sy * vel[s, 1]
+        vel[g, 2] = vel[s, 2]
+        gv[g, 0] = sx * gv[s, 0]
+        gv[g, 1] = sy * gv[s, 1]
+        gv[g, 2] = gv[s, 2]
+        rho[g] = rho[s]
+        mass[g] = mass[s]
+        kind[g] = kind[s]
+        nz[g] = nz[s]
+        dcl[g] = dcl[s]
+        grd[g] = grd[s]
+        side[g] = side[s]
+        sig[g, S_XX] = sig[s, S_XX]
+        sig[g, S_YY] = sig[s, S_YY]
+        sig[g, S_ZZ] = sig[s, S_ZZ]
+        sig[g, S_XY] = sx * sy * sig[s, S_XY]
+        sig[g, S_XZ] = sx * sig[s, S_XZ]
+        sig[g, S_YZ] = sy * sig[s, S_YZ]
+
+
+@njit(cache=True)
+def _build_pairs(pos, kind, cell_start, cell_idx, ss, sso, sb, sbo, fp, ip):
+    """Bin the particles (real and ghost) in cells of side >= the list radius and list, per
+    granular particle p (compressed rows: partners ss[sso[p]:sso[p + 1]]), the pairs within
+    the list radius that the passes need: granular partners q > p (a real p: each granular
+    pair once, acting on both), and boundary partners (sb, sbo) of real granular particles
+    and of granular ghosts next to real boundary particles (their extrapolation). Returns
+    False when a list is full."""
+    n = ip[I_NR] + ip[I_NG]
+    ncx, ncy, ncz = ip[I_NCX], ip[I_NCY], ip[I_NCZ]
+    ncell = ncx * ncy * ncz
+    cell_start[:] = 0
+    cid = np.empty(n, np.int64)
+    for p in range(n):
+        if kind[p] == LOST:
+            cid[p] = -1
+            continue
+        cx, cy, cz = _cell3(pos[p, 0], pos[p, 1], pos[p, 2], fp, ip)
+        c = (cz * ncy + cy) * ncx + cx
+        cid[p] = c
+        cell_start[c + 1] += 1
+    for c in range(ncell):
+        cell_start[c + 1] += cell_start[c]
+    fill = cell_start[:ncell].copy()
+    for p in range(n):
+        c = cid[p]
+        if c >= 0:
+            cell_idx[fill[c]] = p
+            fill[c] += 1
+    nr = ip[I_NR]
+    rl2 = fp[F_RLIST] ** 2
+    nss = 0
+    nsb = 0
+    cap_ss = ss.shape[0]
+    cap_sb = sb.shape[0]
+    for p in range(n):
+        sso[p] = nss
+        sbo[p] = nsb
+        c = cid[p]
+        if c < 0 or kind[p] != SOIL:
+            continue
+        real = p < nr
+        cz = c // (ncx * ncy)
+        cy = (c // ncx) % ncy
+        cx = c % ncx
+        for dz in range(-1, 2):
+            iz = cz + dz
+            if iz < 0 or iz >= ncz:
+                continue
+            for dy in range(-1, 2):
+                iy = cy + dy
+                if iy < 0 or iy >= ncy:
+                    continue
+                for dx in range(-1, 2):
+                    ix = cx + dx
+                    if ix < 0 or ix >= ncx:
+                        continue
+                    cc = (iz * ncy + iy) * ncx + ix
+                    for t in range(cell_start[cc], cell_start[cc + 1]):
+                        q = cell_idx[t]
+                        kq = kind[q]
+                        if kq == SOIL:
+                            if q <= p or not real:
+                                continue
+                        elif not real and q >= nr:
+                            continue
+                        rx = pos[p, 0] - pos[q, 0]
+                        ry = pos[p, 1] - pos[q, 1]
+                        rz = pos[p, 2] - pos[q, 2]
+                        if rx * rx + ry * ry + rz * rz >= rl2:
+                            continue
+                        if kq == SOIL:
+                            if nss >= cap_ss:
+                                return False
+                            ss[nss] = q
+                            nss += 1
+                        else:
+                            if nsb >= cap_sb:
+                                return False
+                            sb[nsb] = q
+                            nsb += 1
+    sso[n] = nss
+    sbo[n] = nsb
+    ip[I_NSS] = nss
+    ip[I_NSB] = nsb
+    return True
+
+
+# ------------------------------------------------------------------------- the pair terms
+@njit(cache=True, fastmath=True)
+def _boundary_pass(pos, vel, gv, rho, sig, kind, nz, dcl, sb, sbo, wsb, reuse, bacc, fp, ip):
+    """Adami extrapolation: stress and (no-slip) ghost velocity of every real wall and
+    plate particle from the granular particles around it (Shepard average + rho (g - a_w) .
+    (x_w - x_f); a_w = 0: walls fixed, the plate moves at constant speed). A plate marker
+    uses only material on its own side. The kernel values go to wsb (per pair) or, with
+    ``reuse`` (positions unchanged since), come from it."""
+    h = fp[F_H]
+    gz = fp[F_GZ]
+    nr = ip[I_NR]
+    n = nr + ip[I_NG]
+    sup2 = 4.0 * h * h
+    c_w = _W3D / (h * h * h)
+    bacc[:nr] = 0.0
+    for f in range(n):
+        if kind[f] != SOIL:
+            continue
+        xf = pos[f, 0]
+        yf = pos[f, 1]
+        zf = pos[f, 2]
+        rf = rho[f]
+        for k in range(sbo[f], sbo[f + 1]):
+            w = sb[k]
+            rz = pos[w, 2] - zf
+            if reuse:
+                wgt = wsb[k]
+                if wgt == 0.0:
+                    continue
+            else:
+                wsb[k] = 0.0
+                if w >= nr:
+                    continue
+                rx = pos[w, 0] - xf
+                ry = pos[w, 1] - yf
+                r2 = rx * rx + ry * ry + rz * rz
+                if r2 >= sup2:
+                    continue
+                if kind[w] == LEG and (-rz * nz[w] + dcl[w]) <= 0.0:
+                    continue
+                q = math.sqrt(r2) / h
+                t = 1.0 - 0.5 * q
+                wgt = c_w * t * t * t * t * (2.0 * q + 1.0)
+                wsb[k] = wgt
+            bacc[w, 0] += wgt
+            for c in range(6):
+                bacc[w, 1 + c] += sig[f, c] * wgt
+            bacc[w, 7] += vel[f, 0] * wgt
+            bacc[w, 8] += vel[f, 1] * wgt
+            bacc[w, 9] += vel[f, 2] * wgt
+            bacc[w, 10] += rf * (gz * rz) * wgt
+    for w in range(nr):
+        kw = kind[w]
+        if kw != WALL and kw != LEG:
+            continue
+        ssum = bacc[w, 0]
+        if ssum > 0.0:
+            inv = 1.0 / ssum
+            p_add = -bacc[w, 10] * inv
+            for c in range(6):
+                sig[w, c] = bacc[w, 1 + c] * inv
+            sig[w, S_XX] += p_add
+            sig[w, S_YY] += p_add
+            sig[w, S_ZZ] += p_add
+            for c in range(3):
+                gv[w, c] = 2.0 * vel[w, c] - bacc[w, 7 + c] * inv
+        else:
+            for c in range(6):
+                sig[w, c] = 0.0
+            for c in range(3):
+                gv[w, c] = vel[w, c]
+
+
+@njit(inline="always", fastmath=True)
+def _add_grad(lg, row, m, vol, dvx, dvy, dvz, gx, gy, gz):
+    """One pair's pass-1 terms for particle ``row`` (partner mass m, volume vol; dv = v_row -
+    v_partner, grad W = (gx, gy, gz) seen from row): d rho += m dv . grad W, l -= vol dv (x)
+    grad W."""
+    lg[row, 0] += m * (dvx * gx + dvy * gy + dvz * gz)
+    lg[row, 1] -= vol * dvx * gx
+    lg[row, 2] -= vol * dvx * gy
+    lg[row, 3] -= vol * dvx * gz
+    lg[row, 4] -= vol * dvy * gx
+    lg[row, 5] -= vol * dvy * gy
+    lg[row, 6] -= vol * dvy * gz
+    lg[row, 7] -= vol * dvz * gx
+    lg[row, 8] -= vol * dvz * gy
+    lg[row, 9] -= vol * dvz * gz
+
+
+@njit(cache=True, fastmath=True)
+def _strain_pass(pos, vel, gv, rho, mass, sig, kind, nz, dcl, side, ss, sso, sb, sbo, fss, fsb,
+                 lg, fp, ip):
+    """Pass 1: d rho/dt and the velocity gradient of every real granular particle (l_ab =
+    dv_a/dx_b, lg[i] = (d rho/dt, lxx, lxy, lxz, lyx, lyy, lyz, lzx, lzy, lzz)), then
+    :func:`dp_update3`. The kernel-gradient factors (grad W = fdw r) go to fss, fsb (0: no
+    interaction) for pass 2."""
+    h = fp[F_H]
+    nr = ip[I_NR]
+    sup2 = 4.0 * h * h
+    dwc = -5.0 * _W3D / (h * h * h * h * h)
+    inv_h = 1.0 / h
+    lg[:nr] = 0.0
+    for a in range(nr):
+        if kind[a] != SOIL:
+            continue
+        xa = pos[a, 0]
+        ya = pos[a, 1]
+        za = pos[a, 2]
+        sa = side[a]
+        ma = mass[a]
+        va = ma / rho[a]
+        for k in range(sso[a], sso[a + 1]):
+            b = ss[k]
+            fss[k] = 0.0
+            if kind[b] != SOIL or sa * side[b] < 0.0:
+                continue
+            rx = xa - pos[b, 0]
+            ry = ya - pos[b, 1]
+            rz = za - pos[b, 2]
+            r2 = rx * rx + ry * ry + rz * rz
+            if r2 >= sup2:
+                continue
+            t = 1.0 - 0.5 * math.sqrt(r2) * inv_h
+            fdw = dwc * t * t * t
+            fss[k] = fdw
+            dvx = vel[a, 0] - vel[b, 0]
+            dvy = vel[a, 1] - vel[b, 1]
+            dvz = vel[a, 2] - vel[b, 2]
+            mb = mass[b]
+            _add_grad(lg, a, mb, mb / rho[b], dvx, dvy, dvz, fdw * rx, fdw * ry, fdw * rz)
+            if b < nr:  # grad_b W = -grad_a W, v_b - v_a = -dv: the same products
+                _add_grad(lg, b, ma, va, dvx, dvy, dvz, fdw * rx, fdw * ry, fdw * rz)
+        for k in range(sbo[a], sbo[a + 1]):
+            w = sb[k]
+            fsb[k] = 0.0
+            rx = xa - pos[w, 0]
+            ry = ya - pos[w, 1]
+            rz = za - pos[w, 2]
+            r2 = rx * rx + ry * ry + rz * rz
+            if r2 >= sup2:
+                continue
+            if kind[w] == LEG and rz * nz[w] + dcl[w] <= 0.0:
+                continue
+            t = 1.0 - 0.5 * math.sqrt(r2) * inv_h
+            fdw = dwc * t * t * t
+            fsb[k] = fdw
+            mw = mass[w]
+            _add_grad(lg, a, mw, mw / rho[w], vel[a, 0] - gv[w, 0], vel[a, 1] - gv[w, 1],
+                      vel[a, 2] - gv[w, 2], fdw * rx, fdw * ry, fdw * rz)
+    dt = fp[F_DT]
+    for i in range(nr):
+        if kind[i] != SOIL:
+            continue
+        (rho[i], sig[i, S_XX], sig[i, S_YY], sig[i, S_ZZ], sig[i, S_XY], sig[i, S_XZ],
+         sig[i, S_YZ]) = dp_update3(
+            rho[i], lg[i, 0], lg[i, 1], lg[i, 2], lg[i, 3], lg[i, 4], lg[i, 5], lg[i, 6],
+            lg[i, 7], lg[i, 8], lg[i, 9], sig[i, S_XX], sig[i, S_YY], sig[i, S_ZZ],
+            sig[i, S_XY], sig[i, S_XZ], sig[i, S_YZ], dt, fp[F_G], fp[F_K], fp[F_APHI],
+            fp[F_KC], fp[F_RMIN], fp[F_RMAX], fp[F_APSI], fp[F_RCRIT])
+
+
+@njit(inline="always", fastmath=True)
+def _stress_term3(psig, a, b, pi_ij, gx, gy, gz):
+    """The momentum equation's pair term per unit mass of b: (sigma_a / rho_a^2 + sigma_b /
+    rho_b^2 - Pi_ab I) . grad_a W (psig: sigma / rho^2 rows), as (tx, ty, tz)."""
+    txx = psig[a, S_XX] + psig[b, S_XX] - pi_ij
+    tyy = psig[a, S_YY] + psig[b, S_YY] - pi_ij
+    tzz = psig[a, S_ZZ] + psig[b, S_ZZ] - pi_ij
+    txy = psig[a, S_XY] + psig[b, S_XY]
+    txz = psig[a, S_XZ] + psig[b, S_XZ]
+    tyz = psig[a, S_YZ] + psig[b, S_YZ]
+    return (txx * gx + txy * gy + txz * gz, txy * gx + tyy * gy + tyz * gz,
+            txz * gx + tyz * gy + tzz * gz)
+
+
+@njit(cache=True, fastmath=True)
+def _accel_pass(pos, vel, rho, mass, sig, psig, kind, nz, dcl, grd, ss, sso, sb, sbo, fss, fsb,
+                acc, cont, fp, ip):
+    """Pass 2's pair sums (the pairs and kernel-gradient factors of pass 1, positions
+    unchanged since): acceleration of every real granular particle (acc[i, 0:3]), its force
+    on the plate (acc[i, 3:6]) and the nearest guarded plate surface (cont[i] = (distance,
+    normal z)). psig: scratch (N, 6) for sigma / rho^2."""
+    h = fp[F_H]
+    nr = ip[I_NR]
+    h2 = h * h
+    c0 = fp[F_C0]
+    ava = fp[F_AVA]
+    avb = fp[F_AVB]
+    half_t = fp[F_HALFT]
+    for i in range(nr + ip[I_NG]):
+        r = rho[i]
+        inv2 = 1.0 / (r * r)
+        for c in range(6):
+            psig[i, c] = sig[i, c] * inv2
+    acc[:nr] = 0.0
+    for a in range(nr):
+        if kind[a] != SOIL:
+            continue
+        xa = pos[a, 0]
+        ya = pos[a, 1]
+        za = pos[a, 2]
+        vxa = vel[a, 0]
+        vya = vel[a, 1]
+        vza = vel[a, 2]
+        ra = rho[a]
+        ma = mass[a]
+        ax = 0.0
+        ay = 0.0
+        az = 0.0
+        for k in range(sso[a], sso[a + 1]):
+            fdw = fss[k]
+            if fdw == 0.0:
+                continue
+            b = ss[k]
+            rx = xa - pos[b, 0]
+            ry = ya - pos[b, 1]
+            rz = za - pos[b, 2]
+            vdotr = (vxa - vel[b, 0]) * rx + (vya - vel[b, 1]) * ry + (vza - vel[b, 2]) * rz
+            pi_ij = 0.0
+            if vdotr < 0.0:
+                mu = h * vdotr / (rx * rx + ry * ry + rz * rz + 0.01 * h2)
+                pi_ij = (-ava * c0 * mu + avb * mu * mu) / (0.5 * (ra + rho[b]))
+            fx, fy, fz = _stress_term3(psig, a, b, pi_ij, fdw * rx, fdw * ry, fdw * rz)
+            mb = mass[b]
+            ax += mb * fx
+            ay += mb * fy
+            az += mb * fz
+            if b < nr:
+                acc[b, 0] -= ma * fx
+                acc[b, 1] -= ma * fy
+                acc[b, 2] -= ma * fz
+        f3x = 0.0
+        f3y = 0.0
+        f3z = 0.0
+        dmin = fp[F_GAP]
+        pn = 0.0
+        for k in range(sbo[a], sbo[a + 1]):
+            fdw = fsb[k]
+            if fdw == 0.0:
+                continue
+            w = sb[k]
+            rx = xa - pos[w, 0]
+            ry = ya - pos[w, 1]
+            rz = za - pos[w, 2]
+            tx, ty, tz = _stress_term3(psig, a, w, 0.0, fdw * rx, fdw * ry, fdw * rz)
+            mw = mass[w]
+            pax = mw * tx
+            pay = mw * ty
+            paz = mw * tz
+            ax += pax
+            ay += pay
+            az += paz
+            if kind[w] == LEG:
+                f3x -= ma * pax
+                f3y -= ma * pay
+                f3z -= ma * paz
+                if grd[w] > 0.0:
+                    dn = rz * nz[w] + dcl[w] - half_t
+                    if dn < dmin:
+                        dmin = dn
+                        pn = nz[w]
+        acc[a, 0] += ax
+        acc[a, 1] += ay
+        acc[a, 2] += az
+        acc[a, 3] = f3x
+        acc[a, 4] = f3y
+        acc[a, 5] = f3z
+        cont[a, 0] = dmin
+        cont[a, 1] = pn
+
+
+@njit(cache=True, fastmath=True)
+def _kick(pos, vel, mass, rho, sig, kind, acc, cont, vplate, damp, force, fp, ip):
+    """Kick, contact guard and drift of the real granular particles; mirror reflection at
+    the symmetry planes; granular particles that left the box become LOST. Adds the force on
+    the plate (pair forces + the guard's momentum) to force (3,). Returns the index of a
+    particle that went non-finite or faster than sound, or -1."""
+    nr = ip[I_NR]
+    dt = fp[F_DT]
+    gz = fp[F_GZ]
+    fdamp = 1.0 / (1.0 + damp * dt)
+    gap = fp[F_GAP]
+    max_push = fp[F_MAXPUSH]
+    vmax = fp[F_VMAX]
+    ly = fp[F_LY]
+    mx = ip[I_MX] != 0
+    my0 = ip[I_MY0] != 0
+    my1 = ip[I_MY1] != 0
+    bad = -1
+    for i in range(nr):
+        if kind[i] != SOIL:
+            continue
+        nvx = (vel[i, 0] + dt * acc[i, 0]) * fdamp
+        nvy = (vel[i, 1] + dt * acc[i, 1]) * fdamp
+        nvz = (vel[i, 2] + dt * (acc[i, 2] + gz)) * fdamp
+        fx = acc[i, 3]
+        fy = acc[i, 4]
+        fz = acc[i, 5]
+        pn = cont[i, 1]
+        dp = 0.0
+        if pn != 0.0:
+            vn = (nvz - vplate) * pn
+            if vn < 0.0:
+                nvz -= vn * pn
+                fz += mass[i] * vn * pn / dt
+            dp = min(gap - cont[i, 0], max_push)
+        force[0] += fx
+        force[1] += fy
+        force[2] += fz
+        vel[i, 0] = nvx
+        vel[i, 1] = nvy
+        vel[i, 2] = nvz
+        x = pos[i, 0] + dt * nvx
+        y = pos[i, 1] + dt * nvy
+        z = pos[i, 2] + dt * nvz + dp * pn
+        flip_x = mx and x < 0.0
+        flip_y = (my0 and y < 0.0) or (my1 and y > ly)
+        if flip_x:
+            x = -x
+            vel[i, 0] = -vel[i, 0]
+            sig[i, S_XY] = -sig[i, S_XY]
+            sig[i, S_XZ] = -sig[i, S_XZ]
+        if flip_y:
+            y = -y if y < 0.0 else 2.0 * ly - y
+            vel[i, 1] = -vel[i, 1]
+            sig[i, S_XY] = -sig[i, S_XY]
+            sig[i, S_YZ] = -sig[i, S_YZ]
+        pos[i, 0] = x
+        pos[i, 1] = y
+        pos[i, 2] = z
+        if x > fp[F_XHIB] or x < fp[F_XLOB] or y > fp[F_YHIB] or z < fp[F_ZLOB]:
+            kind[i] = LOST
+            pos[i, 0] = 1e3 + i
+            pos[i, 1] = 1e3
+            pos[i, 2] = 1e3
+            ip[I_LOST] += 1
+            continue
+        v2 = nvx * nvx + nvy * nvy + nvz * nvz
+        if not (v2 < vmax * vmax and math.isfinite(x + y + z + rho[i] + sig[i, S_ZZ])):
+            bad = i
+    return bad
+
+
+@njit(cache=True, fastmath=True)
+def _sides(pos, kind, side, zc, fp, ip):
+    """Side of the plate of every real granular particle: +1 / -1 above / below its
+    mid-plane where it lies over the plate (|x| <= a, |y| <= b, or any y in the slab) within
+    the side reach (2h + t/2) of it, 0 elsewhere (the 2D side test)."""
+    a = fp[F_PA]
+    b = fp[F_PB]
+    reach = fp[F_SREACH]
+    slab = ip[I_SLAB] != 0
+    for i in range(ip[I_NR]):
+        if kind[i] != SOIL:
+            continue
+        dz = pos[i, 2] - zc
+        s = 0.0
+        if abs(pos[i, 0]) <= a and (slab or abs(pos[i, 1]) <= b) and abs(dz) < reach:
+            s = 1.0 if dz > 0.0 else -1.0
+        side[i] = s
+
+
+@njit(cache=True)
+def _max_disp2(pos, pb, kind, nr):
+    m = 0.0
+    for i in range(nr):
+        if kind[i] == LOST:
+            continue
+        d = ((pos[i, 0] - pb[i, 0]) ** 2 + (pos[i, 1] - pb[i, 1]) ** 2
+             + (pos[i, 2] - pb[i, 2]) ** 2)
+        if d > m:
+            m = d
+    return m
+
+
+@njit(cache=True)
+def steps3d(zc, vz, damp, forces, pos, vel, gv, rho, mass, sig, kind, nz, dcl, grd, side, src,
+            gs, go, boz, lidx, pb, cell_start, cell_idx, ss, sso, sb, sbo, fss, fsb, wsb, lg,
+            acc, cont, bacc, psig, fp, ip):
+    """Advance len(zc) steps: per step the plate (markers ``lidx`` at z = zc[s] + boz, speed
+    vz[s]), its sides, the lists (rebuilt with the ghosts when a particle moved half the
+    skin), the boundary state, pass 1, the boundary state again, pass 2 with damping
+    damp[s]; forces[s] = force of the real granular particles on the whole (real + ghost)
+    plate. Returns (steps done, code): OK; UNSTABLE (ip bad: the particle); PAIRS_FULL or
+    GHOSTS_FULL (the lists did not fit: the step was not done, enlarge and call again)."""
+    nr = ip[I_NR]
+    thr = (0.5 * SKIN * fp[F_H]) ** 2
+    f3 = np.zeros(3)
+    for s in range(zc.shape[0]):
+        if ip[I_PLATE]:
+            for kk in range(lidx.shape[0]):
+                w = lidx[kk]
+                pos[w, 2] = zc[s] + boz[kk]
+                vel[w, 0] = 0.0
+                vel[w, 1] = 0.0
+                vel[w, 2] = vz[s]
+            _sides(pos, kind, side, zc[s], fp, ip)
+        if ip[I_BUILDS] == 0 or _max_disp2(pos, pb, kind, nr) > thr:
+            ng = _make_ghosts(pos, kind, src, gs, go, fp, ip)
+            if ng < 0:
+                return s, GHOSTS_FULL
+            ip[I_NG] = ng
+            _update_ghosts(pos, vel, gv, rho, mass, sig, kind, nz, dcl, grd, side, src, gs, go,
+                           ip)
+            if not _build_pairs(pos, kind, cell_start, cell_idx, ss, sso, sb, sbo, fp, ip):
+                ip[I_BUILDS] = 0
+                return s, PAIRS_FULL
+            pb[:nr] = pos[:nr]
+            ip[I_BUILDS] += 1
+        _update_ghosts(pos, vel, gv, rho, mass, sig, kind, nz, dcl, grd, side, src, gs, go, ip)
+        _boundary_pass(pos, vel, gv, rho, sig, kind, nz, dcl, sb, sbo, wsb, False, bacc, fp, ip)
+        _update_ghosts(pos, vel, gv, rho, mass, sig, kind, nz, dcl, grd, side, src, gs, go, ip)
+        _strain_pass(pos, vel, gv, rho, mass, sig, kind, nz, dcl, side, ss, sso, sb, sbo, fss,
+                     fsb, lg, fp, ip)
+        _update_ghosts(pos, vel, gv, rho, mass, sig, kind, nz, dcl, grd, side, src, gs, go, ip)
+        _boundary_pass(pos, vel, gv, rho, sig, kind, nz, dcl, sb, sbo, wsb, True, bacc, fp, ip)
+        _update_ghosts(pos, vel, gv, rho, mass, sig, kind, nz, dcl, grd, side, src, gs, go, ip)
+        _accel_pass(pos, vel, rho, mass, sig, psig, kind, nz, dcl, grd, ss, sso, sb, sbo, fss,
+                    fsb, acc, cont, fp, ip)
+        f3[:] = 0.0
+        bad = _kick(pos, vel, mass, rho, sig, kind, acc, cont, vz[s], damp[s], f3, fp, ip)
+        forces[s, 0] = f3[0]
+        forces[s, 1] = f3[1]
+        forces[s, 2] = f3[2]
+        if bad >= 0:
+            ip[I_BAD] = bad
+            return s + 1, UNSTABLE
+    return zc.shape[0], OK
+
+
+# ------------------------------------------------------------------------------ the scene
+@dataclass
+class Scene3D:
+    """Real particles of a 3D run (SI): positions (n, 3), kinds, masses, densities, stress
+    (n, 6), velocities (n, 3); plate markers (kind LEG): normal z (+1 top face, -1 bottom),
+    offset from the mid-plane along it (dcl), guard flag, body z offset from the plate
+    centre (``boz``, markers in the order of ``lidx``). ``mirror``: (x = 0, y = 0, y = ly)
+    symmetry planes; ``box``: (x_lo, x_hi, y_hi, z_lo) outside which grains are lost;
+    ``plate``: half length a, half width b, thickness t, slab (the plate spans all y)."""
+
+    pos: np.ndarray
+    kind: np.ndarray
+    mass: np.ndarray
+    rho: np.ndarray
+    sig: np.ndarray
+    vel: np.ndarray
+    material: GranularMaterial
+    config: SPHConfig
+    nz: np.ndarray
+    dcl: np.ndarray
+    grd: np.ndarray
+    boz: np.ndarray
+    mirror: tuple = (True, True, False)
+    ly: float = 0.0
+    box: tuple = (-1e3, 1e3, 1e3, -1e3)
+    plate: dict | None = None
+    depth: float = 0.1
+    gravity: float = G
+    meta: dict = field(default_factory=dict)
+
+    @property
+    def lidx(self) -> np.ndarray:
+        return np.flatnonzero(self.kind == LEG).astype(np.int64)
+
+    def __len__(self):
+        return len(self.kind)
+
+
+def _grid3(x0, x1, y0, y1, z0, z1, dx):
+    """Cubic lattice of spacing dx filling [x0, x1] x [y0, y1] x [z0, z1] (cell centres;
+    each extent a whole number of spacings): (M, 3)."""
+    def ax(a, b):
+        n = max(int(round((b - a) / dx)), 0)
+        return a + (np.arange(n) + 0.5) * dx
+    X, Y, Z = np.meshgrid(ax(x0, x1), ax(y0, y1), ax(z0, z1), indexing="ij")
+    return np.stack([X.ravel(), Y.ravel(), Z.ravel()], -1)
+
+
+def estimate_particles(half_x: float, half_y: float, depth: float, dx: float, layers: int = 3,
+                       mirror_x: bool = True, slab: bool = False) -> int:
+    """Real + ghost particles of a :func:`plate_scene` (an estimate for the memory check)."""
+    nx = half_x / dx * (1 if mirror_x else 2) + layers * (1 if mirror_x else 2)
+    ny = half_y / dx + (0 if slab else layers)
+    nzz = (depth + 0.03) / dx + layers
+    real = nx * ny * nzz
+    ghosts = 3.0 * (2.2 * 1.3 + 1) * (nx + ny) * nzz
+    return int(real + ghosts)
+
+
+def plate_scene(medium: str | GranularMaterial = "3 mm glass CP", *, dx: float = 4e-3,
+                config: SPHConfig | None = None, length: float = PLATE_LENGTH,
+                width: float = PLATE_WIDTH, thickness: float = PLATE_THICKNESS,
+                slab: int | None = None, half_x: float | None = None,
+                half_y: float | None = None, depth: float | None = None,
+                mirror_x: bool = True, z0: float | None = None,
+                with_plate: bool = True) -> Scene3D:
+    """The bed and plate of the 3D plate test, a quarter of it (symmetry planes x = 0, y = 0).
+
+    The plate (``length`` along x, ``width`` along y, ``thickness``) is centred at x = y = 0
+    with its centre ``z0`` above the surface z = 0 (default t/2 + dx/2: its bottom face
+    dx/2 above the top grains, as in 2D). Bed: x in [0, half_x] (default 3 plate lengths),
+    y in [0, half_y] (default 3 plate widths), depth (default the plate test's 4 cm + 2
+    plate lengths, the 2D bed's), geostatic stress, a rough floor and far walls (up to 3 cm
+    above the surface, ``config.wall_layers`` layers). ``slab`` = n: the plane-strain
+    configuration instead, a slab n particles thick in y between two symmetry planes with
+    the plate spanning it (the 2D test in 3D). ``mirror_x`` False: both halves in x, with a
+    wall at -half_x (a check of the x mirror). ``with_plate`` False: the bed alone."""
+    mat = _material(medium)
+    cfg = config or SPHConfig(dx=dx)
+    dx = cfg.dx
+    positive("length", length, "m")
+    positive("width", width, "m")
+    positive("thickness", thickness, "m")
+    layers = cfg.wall_layers
+    hx = half_x if half_x is not None else 3.0 * length
+    if slab is not None:
+        integer("slab", slab, 2)
+        hy = slab * dx
+    else:
+        hy = half_y if half_y is not None else 3.0 * width
+    D = depth if depth is not None else PLATE_TEST["depth_m"] + 2.0 * length
+    for name, v in (("half_x", hx), ("half_y", hy), ("depth", D)):
+        positive(name, v, "m")
+    nx = max(int(round(hx / dx)), 1)
+    ny = max(int(round(hy / dx)), 1)
+    nzs = max(int(round(D / dx)), 1)
+    hx, hy, D = nx * dx, ny * dx, nzs * dx
+    if slab is not None and hy < 2.2 * cfg.h + SKIN * cfg.h:
+        raise InputError("slab", f"the slab must be at least {math.ceil((2.2 + SKIN) * cfg.hdx)} "
+                                 f"particles thick (its mirror ghosts cover one list radius), "
+                                 f"got {slab}")
+    n_est = estimate_particles(hx, hy, D, dx, layers, mirror_x, slab is not None)
+    if n_est > MAX_PARTICLES:
+        raise InputError("dx", f"a 3D bed of about {n_est:,} particles (dx = {dx * 1e3:g} mm) is "
+                               f"more than the {MAX_PARTICLES:,} this serial code allows")
+    check_memory("dx", n_est * PARTICLE_BYTES_3D,
+                 f"a 3D bed of about {n_est:,} particles (dx = {dx * 1e3:g} mm)")
+    x_lo = 0.0 if mirror_x else -hx
+    soil = _grid3(x_lo, hx, 0.0, hy, -D, 0.0, dx)
+    top = max(int(round(0.03 / dx)), 1) * dx  # walls 3 cm above the surface (as in 2D)
+    wx_lo = x_lo if mirror_x else x_lo - layers * dx
+    wy_hi = hy if slab is not None else hy + layers * dx
+    walls = [_grid3(wx_lo, hx + layers * dx, 0.0, wy_hi, -D - layers * dx, -D, dx),
+             _grid3(hx, hx + layers * dx, 0.0, hy, -D, top, dx)]
+    if not mirror_x:
+        walls.append(_grid3(x_lo - layers * dx, x_lo, 0.0, hy, -D, top, dx))
+    if slab is None:
+        walls.append(_grid3(wx_lo, hx + layers * dx, hy, hy + layers * dx, -D, top, dx))
+    walls = np.concatenate(walls)
+    # plate markers (body frame: x, y on the plate, z from its centre)
+    a = 0.5 * length
+    b = hy if slab is not None else 0.5 * width
+    t = thickness
+    nxm = max(int(round(a / dx)), 1)
+    xm = (np.arange(nxm) + 0.5) * (a / nxm)
+    if not mirror_x:
+        xm = np.concatenate([-xm[::-1], xm])
+    if slab is not None:
+        ym = (np.arange(ny) + 0.5) * dx
+    else:
+        nym = max(int(round(b / dx)), 1)
+        ym = (np.arange(nym) + 0.5) * (b / nym)
+    MX, MY = np.meshgrid(xm, ym, indexing="ij")
+    MX, MY = MX.ravel(), MY.ravel()
+    guard_xy = (np.abs(MX) < a - 1.5 * dx) & ((slab is not None) | (np.abs(MY) < b - 1.5 * dx))
+    mk = []
+    for sd in (1.0, -1.0):
+        for k in range(layers):
+            d = 0.5 * t - (k + 0.5) * dx
+            mk.append(np.stack([MX, MY, np.full_like(MX, sd * d), np.full_like(MX, sd),
+                                np.full_like(MX, d), guard_xy.astype(float)], -1))
+    mk = np.concatenate(mk) if with_plate else np.zeros((0, 6))
+    zc0 = z0 if z0 is not None else 0.5 * t + 0.5 * dx
+    # granular particles inside the plate's body at the start (none when it starts above)
+    inside = ((np.abs(soil[:, 0]) <= a + 0.5 * dx) & ((slab is not None) | (soil[:, 1] <= b + 0.5 * dx))
+              & (np.abs(soil[:, 2] - zc0) <= 0.5 * t + 0.5 * dx))
+    if with_plate:
+        soil = soil[~inside]
+    ns, nw, nm = len(soil), len(walls), len(mk)
+    pos = np.concatenate([soil, walls, np.stack([mk[:, 0], mk[:, 1], zc0 + mk[:, 2]], -1)])
+    kind = np.concatenate([np.full(ns, SOIL), np.full(nw, WALL), np.full(nm, LEG)]).astype(np.int8)
+    n = len(kind)
+    rho = np.full(n, mat.density)
+    mass = rho * dx ** 3
+    sig = np.zeros((n, 6))
+    szz = -mat.density * G * np.clip(-soil[:, 2], 0.0, None)
+    sig[:ns, S_ZZ] = szz
+    sig[:ns, S_XX] = mat.lateral_ratio * szz
+    sig[:ns, S_YY] = mat.lateral_ratio * szz
+    nzv = np.zeros(n)
+    dcl = np.zeros(n)
+    grd = np.zeros(n)
+    nzv[ns + nw:] = mk[:, 3]
+    dcl[ns + nw:] = mk[:, 4]
+    grd[ns + nw:] = mk[:, 5]
+    box = (x_lo - (0.0 if mirror_x else layers * dx), hx + layers * dx,
+           hy + (0.0 if slab is not None else layers * dx), -D - layers * dx)
+    meta = {"scene": "plate3d", "dx_m": dx, "half_x_m": hx, "half_y_m": hy, "depth_m": D,
+            "slab_layers": slab, "mirror_x": mirror_x, "plate_m": [length, width, thickness],
+            "z0_m": zc0, "granular": ns, "wall": nw, "markers": nm, "wall_top_m": top}
+    return Scene3D(pos, kind, mass, rho, sig, np.zeros((n, 3)), mat, cfg, nzv, dcl, grd,
+                   mk[:, 2].copy(), mirror=(mirror_x, True, slab is not None), ly=hy, box=box,
+                   plate={"a": a, "b": b, "t": t, "slab": slab is not None, "z0": zc0},
+                   depth=D, meta=meta)
+
+
+# ----------------------------------------------------------------------------- the solver
+class Solver3D:
+    """Advances a :class:`Scene3D` (serial Numba kernels, :func:`steps3d`)."""
+
+    def __init__(self, scene: Scene3D, *, plate_speed: float = 0.0):
+        self.scene = sc = scene
+        cfg = sc.config
+        mat = sc.material
+        nr = len(sc)
+        self.nr = nr
+        self.h = cfg.h
+        self.rlist = (2.0 + SKIN) * self.h
+        self.c0 = mat.sound_speed
+        self.dt = cfg.cfl * self.h / (self.c0 + abs(plate_speed))
+        self.settle_time = (cfg.settle_time if cfg.settle_time is not None
+                            else 15.0 * sc.depth / self.c0)
+        self.settle_damping = 2.0 * self.c0 / max(sc.depth, 1e-6)
+        near = self._near_planes(sc)
+        ng_cap = int(3 * near + 64)
+        n = nr + ng_cap
+        self.pos = np.zeros((n, 3))
+        self.vel = np.zeros((n, 3))
+        self.gv = np.zeros((n, 3))
+        self.rho = np.zeros(n)
+        self.mass = np.zeros(n)
+        self.sig = np.zeros((n, 6))
+        self.kind = np.full(n, LOST, np.int8)
+        self.nz = np.zeros(n)
+        self.dcl = np.zeros(n)
+        self.grd = np.zeros(n)
+        self.side = np.zeros(n)
+        self.pos[:nr] = sc.pos
+        self.vel[:nr] = sc.vel
+        self.rho[:nr] = sc.rho
+        self.mass[:nr] = sc.mass
+        self.sig[:nr] = sc.sig
+        self.kind[:nr] = sc.kind
+        self.nz[:nr] = sc.nz
+        self.dcl[:nr] = sc.dcl
+        self.grd[:nr] = sc.grd
+        self.src = np.zeros(n, np.int64)
+        self.gs = np.ones((n, 3))
+        self.go = np.zeros((n, 3))
+        self.lidx = sc.lidx
+        self.boz = np.ascontiguousarray(sc.boz, dtype=np.float64)
+        self.pb = np.full((nr, 3), np.inf)
+        n_soil = int(np.sum(sc.kind == SOIL))
+        n_bnd = nr - n_soil
+        self.ss = np.zeros(int(55 * (n_soil + 0.5 * ng_cap)) + 64, np.int32)
+        self.sb = np.zeros(int(60 * min(n_bnd + ng_cap, n_soil + ng_cap)) + 64, np.int32)
+        self.sso = np.zeros(n + 1, np.int64)
+        self.sbo = np.zeros(n + 1, np.int64)
+        self._pair_scratch()
+        self.lg = np.zeros((n, 10))
+        self.psig = np.zeros((n, 6))
+        self.acc = np.zeros((n, 6))
+        self.cont = np.zeros((n, 2))
+        self.bacc = np.zeros((n, 11))
+        # the cell grid: cells >= the list radius over everything that may move
+        p = sc.pos
+        pad = self.rlist + 2 * cfg.dx
+        lo = p.min(axis=0) - pad
+        hi = p.max(axis=0) + pad
+        lo[2] -= 0.0
+        hi[2] += 0.02
+        if sc.plate is not None:
+            lo[2] = min(lo[2], -PLATE_TEST["depth_m"] - sc.plate["t"] - pad)
+        cell = self.rlist
+        ncell = np.maximum(np.ceil((hi - lo) / cell).astype(int), 1)
+        self.cell_start = np.zeros(int(np.prod(ncell)) + 1, np.int64)
+        self.cell_idx = np.zeros(n, np.int64)
+        plate = sc.plate or {"a": 0.0, "b": 0.0, "t": 0.0, "slab": False}
+        gap = (0.25 if cfg.contact_gap is None else cfg.contact_gap) * cfg.dx
+        val = dict(h=self.h, dt=self.dt, shear_mod=mat.shear_modulus, bulk_mod=mat.bulk_modulus,
+                   alpha_phi=mat.alpha_phi, k_c=mat.k_c, rho_min=0.9 * mat.density,
+                   rho_max=1.1 * mat.density, alpha_psi=mat.alpha_psi,
+                   rho_crit=mat.dilation_limit, c0=self.c0, av_alpha=cfg.av_alpha,
+                   av_beta=cfg.av_beta, gz=-sc.gravity, half_t=0.5 * plate["t"], gap=gap,
+                   max_push=0.1 * cfg.dx, vmax=self.c0, plate_a=plate["a"], plate_b=plate["b"],
+                   ly=sc.ly, x_lo=lo[0], y_lo=lo[1], z_lo=lo[2], inv_cell=1.0 / cell,
+                   rlist=self.rlist, x_hi_box=sc.box[1], y_hi_box=sc.box[2], z_lo_box=sc.box[3],
+                   side_reach=2.0 * self.h + 0.5 * plate["t"], x_lo_box=sc.box[0])
+        self.fp = np.array([val[k] for k in FP], dtype=np.float64)
+        ival = dict(nr=nr, ng=0, nss=0, nsb=0, ncx=ncell[0], ncy=ncell[1], ncz=ncell[2],
+                    mirror_x=int(sc.mirror[0]), mirror_y0=int(sc.mirror[1]),
+                    mirror_y1=int(sc.mirror[2]), slab=int(bool(plate["slab"])), builds=0,
+                    has_plate=int(len(self.lidx) > 0), bad=-1, lost=0)
+        self.ip = np.array([ival[k] for k in IP], dtype=np.int64)
+        self.t = 0.0
+        self.step_count = 0
+
+    def _near_planes(self, sc) -> int:
+        r = self.rlist + sc.config.dx
+        p = sc.pos
+        cnt = 0
+        if sc.mirror[0]:
+            cnt += int(np.sum(p[:, 0] < r))
+        if sc.mirror[1]:
+            cnt += int(np.sum(p[:, 1] < r))
+        if sc.mirror[2]:
+            cnt += int(np.sum(p[:, 1] > sc.ly - r))
+        return cnt
+
+    def _pair_scratch(self):
+        self.fss = np.zeros(len(self.ss))
+        self.fsb = np.zeros(len(self.sb))
+        self.wsb = np.zeros(len(self.sb))
+
+    def _grow(self, code):
+        """Enlarge the array that did not fit (and force a rebuild)."""
+        if code == PAIRS_FULL:
+            self.ss = np.zeros(int(1.5 * len(self.ss)), np.int32)
+            self.sb = np.zeros(int(1.5 * len(self.sb)), np.int32)
+            self._pair_scratch()
+        else:
+            extra = max(len(self.pos) - self.nr, 64)
+            n = len(self.pos) + extra
+            for name in ("pos", "vel", "gv", "gs", "go", "sig", "lg", "acc", "cont", "bacc",
+                         "psig"):
+                a = getattr(self, name)
+                b = np.zeros((n,) + a.shape[1:])
+                b[:len(a)] = a
+                setattr(self, name, b)
+            for name in ("rho", "mass", "nz", "dcl", "grd", "side"):
+                a = getattr(self, name)
+                b = np.zeros(n)
+                b[:len(a)] = a
+                setattr(self, name, b)
+            k = np.full(n, LOST, np.int8)
+            k[:len(self.kind)] = self.kind
+            self.kind = k
+            s = np.zeros(n, np.int64)
+            s[:len(self.src)] = self.src
+            self.src = s
+            self.cell_idx = np.zeros(n, np.int64)
+            self.sso = np.zeros(n + 1, np.int64)
+            self.sbo = np.zeros(n + 1, np.int64)
+        self.ip[I_BUILDS] = 0
+
+    def advance(self, zc, vz, damp) -> np.ndarray:
+        """len(zc) steps with the plate centre at zc[s], its speed vz[s], damping damp[s];
+        returns the force (N, 3) of the real granular particles on the plate per step."""
+        zc = np.ascontiguousarray(zc, dtype=np.float64)
+        vz = np.ascontiguousarray(vz, dtype=np.float64)
+        damp = np.ascontiguousarray(damp, dtype=np.float64)
+        out = np.zeros((len(zc), 3))
+        done = 0
+        while done < len(zc):
+            d, code = steps3d(zc[done:], vz[done:], damp[done:], out[done:], self.pos,
+                              self.vel, self.gv, self.rho, self.mass, self.sig, self.kind,
+                              self.nz, self.dcl, self.grd, self.side, self.src, self.gs,
+                              self.go, self.boz, self.lidx, self.pb, self.cell_start,
+                              self.cell_idx, self.ss, self.sso, self.sb, self.sbo, self.fss,
+                              self.fsb, self.wsb,
+                              self.lg, self.acc, self.cont, self.bacc, self.psig, self.fp,
+                              self.ip)
+            done += int(d)
+            self.step_count += int(d)
+            self.t += int(d) * self.dt
+            if code == UNSTABLE:
+                i = int(self.ip[I_BAD])
+                raise InputError("plate3d", f"the 3D run went unstable at step {self.step_count}: "
+                                            f"particle {i} at {self.pos[i].round(4).tolist()} m "
+                                            "(non-finite or faster than sound)")
+            if code in (PAIRS_FULL, GHOSTS_FULL):
+                self._grow(code)
+        return out
+
+    @property
+    def soil(self) -> np.ndarray:
+        return np.flatnonzero(self.kind[:self.nr] == SOIL)
+
+    @property
+    def lost(self) -> int:
+        return int(self.ip[I_LOST])
+
+
+def force_factor(scene: Scene3D) -> float:
+    """Whole plate / sum over the real grains: 2 per mirror plane that halves the plate."""
+    f = 2.0 if scene.mirror[0] else 1.0
+    if scene.mirror[1] and not scene.plate["slab"]:
+        f *= 2.0
+    return f
+
+
+def plate_area(scene: Scene3D) -> float:
+    """Area of the whole plate (m^2); for the slab, its length x the slab's thickness, the
+    strip the real grains press on (times the x mirror)."""
+    pl = scene.plate
+    return (2.0 * pl["a"]) * (scene.ly if pl["slab"] else 2.0 * pl["b"])
+
+
+def fit_alpha(depth: np.ndarray, stress: np.ndarray, fit_from: float) -> dict:
+    """The 2D plate test's two fits over depths > fit_from: sigma = alpha |z| through the
+    origin (RFT-consistent, :func:`terradyn.sph.calibration.plate_slope`) and the free
+    slope and intercept."""
+    m = depth > fit_from
+    if m.sum() < 2:
+        return {"alpha_z": float("nan"), "slope": float("nan"), "intercept_Pa": float("nan")}
+    slope, icpt = np.polyfit(depth[m], stress[m], 1)
+    return {"alpha_z": float(np.sum(stress[m] * depth[m]) / np.sum(depth[m] ** 2)),
+            "slope": float(slope), "intercept_Pa": float(icpt)}
+
+
+def plate_push3d(medium: str | GranularMaterial = "3 mm glass CP", *, dx: float = 4e-3,
+                 config: SPHConfig | None = None, slab: int | None = None,
+                 half_x: float | None = None, half_y: float | None = None,
+                 depth: float | None = None, speed: float = PLATE_TEST["speed_m_s"],
+                 push_depth: float = PLATE_TEST["depth_m"], n_samples: int = PLATE_TEST["n_samples"],
+                 fit_from: float = PLATE_TEST["fit_from_m"], realization: int = 0,
+                 mirror_x: bool = True, progress=None, partial=None) -> dict:
+    """The plate test of :data:`~terradyn.sph.calibration.PLATE_TEST` in 3D: the plate
+    pushed straight down at ``speed`` from dx/2 above the surface to ``push_depth`` (centre
+    depth), sampled at ``n_samples`` times; stress = whole-plate vertical force / area.
+    Returns depth (m), stress (Pa), alpha_z (N/m^3, through the origin over depths >
+    fit_from, as the 2D calibration fits it), the free slope and intercept, the lateral
+    forces, counts and timings. ``slab``: the plane-strain configuration (see
+    :func:`plate_scene`). ``progress(done_s, total_s)`` every block of steps; ``partial(depth,
+    stress)``: the samples reached so far (m, Pa), after every block (a long run that is
+    stopped still leaves its curve)."""
+    positive("speed", speed, "m/s")
+    positive("push_depth", push_depth, "m")
+    integer("n_samples", n_samples, 3)
+    cfg = config or SPHConfig(dx=dx)
+    z0 = 0.5 * PLATE_THICKNESS + 0.5 * cfg.dx + 1e-8 * int(realization)
+    sc = plate_scene(medium, config=cfg, slab=slab, half_x=half_x, half_y=half_y, depth=depth,
+                     mirror_x=mirror_x, z0=z0)
+    t_wall = time.perf_counter()
+    s = Solver3D(sc, plate_speed=speed)
+    T = (push_depth + z0) / speed
+    nsteps = int(math.ceil((s.settle_time + T) / s.dt))
+    ts = np.arange(nsteps) * s.dt
+    settling = ts < s.settle_time
+    tm = np.maximum(ts - s.settle_time, 0.0)
+    zc = z0 - speed * tm
+    vz = np.where(settling, 0.0, -speed)
+    damp = np.where(settling, s.settle_damping, 0.0)
+    forces = np.zeros((nsteps, 3))
+    block = 2000
+    fac = force_factor(sc)
+    area = plate_area(sc)
+    t = np.linspace(0.0, T, n_samples)
+    for k in range(0, nsteps, block):
+        forces[k:k + block] = s.advance(zc[k:k + block], vz[k:k + block], damp[k:k + block])
+        if progress is not None:
+            progress(min(k + block, nsteps) * s.dt, nsteps * s.dt)
+        if partial is not None:
+            upto = min(k + block, nsteps)
+            keep = ~settling[:upto]
+            if keep.sum() > 1:
+                t_now = ts[upto - 1] - s.settle_time
+                tt = t[t <= t_now]
+                partial(-(z0 - speed * tt), np.interp(tt, ts[:upto][keep] - s.settle_time,
+                                                      forces[:upto][keep, 2]) * fac / area)
+    keep = ~settling
+    t_rec = ts[keep] - s.settle_time
+    fz = np.interp(t, t_rec, forces[keep, 2]) * fac
+    d = -(z0 - speed * t)
+    stress = fz / area
+    fits = fit_alpha(d, stress, fit_from)
+    wall = time.perf_counter() - t_wall
+    return {"depth": d, "stress": stress, **fits, "time": t,
+            "fx_quarter_N": np.interp(t, t_rec, forces[keep, 0]),
+            "fy_quarter_N": np.interp(t, t_rec, forces[keep, 1]),
+            "fz_quarter_N": np.interp(t, t_rec, forces[keep, 2]),
+            "force_factor": fac, "area_m2": area, "steps": nsteps, "dt_s": s.dt,
+            "particles": s.nr, "ghosts": int(s.ip[I_NG]), "pairs": int(s.ip[I_NSS] + s.ip[I_NSB]),
+            "lost": s.lost, "wall_s": wall, "scene": sc.meta, "solver": s}
+
+
+def shape_factor(length: float, width: float, friction: float) -> float:
+    """Bearing-capacity shape factor of the surcharge term, s_q = 1 + (B/L) tan(phi), B <= L
+    the plate's sides (De Beer 1970, as tabulated by Vesic 1973); phi in rad."""
+    in_range("friction", friction, 0.0, math.pi / 2, "rad")
+    b, l_ = sorted((length, width))
+    return 1.0 + (b / l_) * math.tan(friction)

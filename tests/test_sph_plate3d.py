@@ -1,0 +1,169 @@
+"""The 3D plate-test SPH (terradyn.sph.plate3d): its constitutive law against the 2D one, a bed
+at rest, the symmetry planes, momentum and energy. Small beds; the study is
+benchmarks/sph_plate3d.py."""
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+from terradyn.errors import InputError
+from terradyn.sph import physics
+from terradyn.sph import plate3d as P
+from terradyn.sph.materials import from_medium
+from terradyn.sph.state import SOIL, SPHConfig
+from terradyn.units import DEG, G
+
+
+def _plane_strain_history(n=400, seed=1):
+    """Random plane-strain velocity gradients (x-z) large enough to yield, load and unload,
+    and reach the tension cut-off."""
+    rng = np.random.default_rng(seed)
+    L = rng.normal(0.0, 40.0, (n, 4))
+    L[n // 2:n // 2 + 40] = (80.0, 0.0, 0.0, 80.0)  # an extension: to the tension cut-off
+    return L, rng.normal(0.0, 5e3, n)
+
+
+@pytest.mark.parametrize("medium,dilatancy", [("poppy LP", "none"), ("0.3 mm glass CP", "bolton")])
+@pytest.mark.parametrize("compiled", [False, True])
+def test_3d_drucker_prager_reduces_to_the_2d_update_for_plane_strain(medium, dilatancy, compiled):
+    mat = from_medium(medium, dilatancy=dilatancy)
+    f2 = physics.dp_update.py_func  # (its compiled form is inlined into the 2D loops)
+    f3 = P.dp_update3 if compiled else P.dp_update3.py_func
+    L, drho = _plane_strain_history()
+    dt = 1e-4
+    consts = (dt, mat.shear_modulus, mat.bulk_modulus, mat.alpha_phi, mat.k_c, 0.9 * mat.density,
+              1.1 * mat.density, mat.alpha_psi, mat.dilation_limit)
+    s2 = (mat.density, -800.0, -1500.0, 30.0, -700.0)  # rho, sxx, szz, sxz, syy
+    s3 = (mat.density, -800.0, -700.0, -1500.0, 0.0, 30.0, 0.0)  # rho, sxx, syy, szz, sxy, sxz, syz
+    yielded = cut = 0
+    for k in range(len(drho)):
+        lxx, lxz, lzx, lzz = L[k]
+        rho, sxx, szz, sxz, syy = f2(s2[0], drho[k], lxx, lxz, lzx, lzz, *s2[1:], *consts)
+        r3 = f3(s3[0], drho[k], lxx, 0.0, lxz, 0.0, 0.0, 0.0, lzx, 0.0, lzz, *s3[1:], *consts)
+        want = (rho, sxx, syy, szz, 0.0, sxz, 0.0)
+        scale = max(abs(sxx), abs(szz), abs(syy), 1.0)
+        for got, ref in zip(r3[1:], want[1:]):
+            assert abs(got - ref) <= 1e-12 * scale
+        assert r3[0] == pytest.approx(rho, rel=1e-14)
+        i1 = sxx + szz + syy
+        m = i1 / 3
+        j2 = 0.5 * ((sxx - m) ** 2 + (szz - m) ** 2 + (syy - m) ** 2) + sxz ** 2
+        yielded += math.sqrt(j2) >= 0.999 * (-mat.alpha_phi * i1) > 0
+        cut += abs(i1) < 1e-9
+        s2 = (rho, sxx, szz, sxz, syy)
+        s3 = r3
+    assert yielded > 20  # the history exercised the return ...
+    if dilatancy == "none":
+        assert cut > 5  # ... and the tension cut-off (a dilatant packing stays compressed)
+
+
+def test_3d_return_is_objective_and_isotropic_in_the_out_of_plane_direction():
+    """A strain rate in the y-z plane gives the numbers of the same rate in the x-z plane with
+    x and y swapped (the 3D update has no preferred in-plane axis)."""
+    mat = from_medium("3 mm glass CP")
+    c = (1e-4, mat.shear_modulus, mat.bulk_modulus, mat.alpha_phi, mat.k_c, 0.9 * mat.density,
+         1.1 * mat.density, 0.0, 0.0)
+    rho = mat.density
+    a = P.dp_update3(rho, 10.0, 3.0, 0.0, 7.0, 0.0, -1.0, 0.0, -2.0, 0.0, 4.0,
+                     -900.0, -500.0, -1400.0, 0.0, 60.0, 0.0, *c)
+    b = P.dp_update3(rho, 10.0, -1.0, 0.0, 0.0, 0.0, 3.0, 7.0, 0.0, -2.0, 4.0,
+                     -500.0, -900.0, -1400.0, 0.0, 0.0, 60.0, *c)
+    # (rho, sxx, syy, szz, sxy, sxz, syz): b is a with x <-> y
+    assert b[1] == pytest.approx(a[2]) and b[2] == pytest.approx(a[1])
+    assert b[3] == pytest.approx(a[3]) and b[6] == pytest.approx(a[5])
+    assert b[5] == pytest.approx(a[6], abs=1e-9) and b[4] == pytest.approx(a[4], abs=1e-9)
+
+
+def test_geostatic_bed_at_rest_stays_at_rest():
+    cfg = SPHConfig(dx=5e-3)
+    sc = P.plate_scene("3 mm glass CP", config=cfg, half_x=0.03, half_y=0.025, depth=0.04,
+                       with_plate=False)
+    s = P.Solver3D(sc)
+    n = 300
+    s.advance(np.zeros(n), np.zeros(n), np.zeros(n))  # undamped: the initial state must hold
+    soil = s.soil
+    z = s.pos[soil, 2]
+    szz = s.sig[soil, P.S_ZZ]
+    inner = (z < -2 * cfg.dx) & (z > -sc.depth + 2 * cfg.dx)
+    slope = np.polyfit(-z[inner], -szz[inner], 1)[0]
+    assert slope == pytest.approx(sc.material.density * G, rel=0.04)
+    k0 = s.sig[soil, P.S_XX][inner] / szz[inner]
+    assert np.median(k0) == pytest.approx(sc.material.lateral_ratio, rel=0.1)
+    assert np.median(s.sig[soil, P.S_YY][inner] / szz[inner]) == pytest.approx(np.median(k0), rel=0.05)
+    v = np.linalg.norm(s.vel[soil], axis=1)
+    # at rest: far below the speed a free fall over the run would give (g t)
+    assert v.max() < 0.05 * G * n * s.dt
+    assert s.lost == 0
+
+
+def _push(mirror_x):
+    cfg = SPHConfig(dx=5e-3, settle_time=0.005)
+    return P.plate_push3d("3 mm glass CP", config=cfg, half_x=0.03, half_y=0.018, depth=0.02,
+                          speed=0.2, push_depth=0.002, n_samples=5, fit_from=0.0,
+                          mirror_x=mirror_x)
+
+
+def test_plate_feels_no_net_lateral_force_and_the_x_mirror_equals_both_halves():
+    half = _push(False)  # both halves in x, a wall at each end
+    quarter = _push(True)
+    fz = half["fz_quarter_N"][-1]
+    assert fz > 0.05  # the plate is in the bed and pushed up
+    # both halves simulated: the lateral forces cancel
+    assert abs(half["fx_quarter_N"][-1]) < 0.01 * fz
+    # the mirror plane x = 0 stands for the other half: the same stress on the plate
+    assert quarter["stress"][-1] == pytest.approx(half["stress"][-1], rel=0.02)
+    assert quarter["force_factor"] == 4.0 and half["force_factor"] == 2.0
+    assert quarter["ghosts"] > 0 and quarter["particles"] < 0.6 * half["particles"]
+
+
+def test_momentum_is_conserved_and_energy_not_created_in_a_free_block():
+    mat = from_medium("poppy LP")
+    cfg = SPHConfig(dx=5e-3)
+    dx = cfg.dx
+    pos = P._grid3(0, 6 * dx, 0, 6 * dx, 0, 6 * dx, dx)
+    n = len(pos)
+    rng = np.random.default_rng(3)
+    vel = rng.normal(0.0, 0.05, (n, 3))
+    sig = np.zeros((n, 6))
+    sig[:, :3] = -200.0  # a confined block, released
+    rho = np.full(n, mat.density)
+    sc = P.Scene3D(pos, np.full(n, SOIL, np.int8), rho * dx ** 3, rho, sig, vel, mat, cfg,
+                   np.zeros(n), np.zeros(n), np.zeros(n), np.zeros(0), mirror=(False, False, False),
+                   gravity=0.0, depth=6 * dx)
+    s = P.Solver3D(sc)
+    m = s.mass[:n, None]
+
+    def energy():
+        sg = s.sig[:n]
+        p = -sg[:, :3].mean(axis=1)
+        dev = sg[:, :3] + p[:, None]
+        s2 = (dev ** 2).sum(axis=1) + 2 * (sg[:, 3:] ** 2).sum(axis=1)
+        vol = s.mass[:n] / s.rho[:n]
+        elastic = vol * (s2 / (4 * mat.shear_modulus) + p ** 2 / (2 * mat.bulk_modulus))
+        return 0.5 * float((m[:, 0] * (s.vel[:n] ** 2).sum(axis=1)).sum()) + float(elastic.sum())
+
+    p0 = (m * s.vel[:n]).sum(axis=0)
+    e0 = energy()
+    s.advance(np.zeros(200), np.zeros(200), np.zeros(200))
+    p1 = (m * s.vel[:n]).sum(axis=0)
+    scale = float((m * np.abs(vel)).sum())
+    assert np.abs(p1 - p0).max() < 1e-12 * scale
+    assert energy() < e0 * 1.01
+
+
+def test_bad_requests_are_refused_before_any_allocation():
+    with pytest.raises(InputError, match="dx"):
+        P.plate_scene("poppy LP", dx=4e-4)
+    with pytest.raises(InputError, match="slab"):
+        P.plate_scene("poppy LP", dx=4e-3, slab=2)
+    with pytest.raises(InputError, match="speed"):
+        P.plate_push3d("poppy LP", speed=0.0)
+
+
+def test_shape_factor_is_the_de_beer_surcharge_factor():
+    assert P.shape_factor(P.PLATE_LENGTH, P.PLATE_WIDTH, 36 * DEG) == pytest.approx(
+        1 + (2.54 / 3.81) * math.tan(36 * DEG))
+    assert P.shape_factor(P.PLATE_WIDTH, P.PLATE_LENGTH, 36 * DEG) == pytest.approx(
+        P.shape_factor(P.PLATE_LENGTH, P.PLATE_WIDTH, 36 * DEG))
