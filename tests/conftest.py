@@ -8,3 +8,16 @@ matplotlib.use("Agg")
 # over the cores (the sweep pool does the same for its workers)
 if os.environ.get("PYTEST_XDIST_WORKER") and "NUMBA_NUM_THREADS" not in os.environ:
     os.environ["NUMBA_NUM_THREADS"] = "1"
+
+
+import pytest  # noqa: E402
+
+
+@pytest.fixture(autouse=True)
+def _close_figures():
+    """The plotting functions return their figure to the caller (who may keep drawing on it):
+    close what a test leaves open, so one worker does not pile up hundreds of figures."""
+    yield
+    import matplotlib.pyplot as plt
+
+    plt.close("all")
