@@ -99,7 +99,7 @@ def validate_cmd(
     quick: bool = typer.Option(False, "--quick", help="4 mm particles, one column (a = 1), the rig's 3 x 5 subset, the flat leg only."),
     scene: list[str] = typer.Option([], "--scene", help="Scenes to run (repeat): bed, column, plate, rig, legs (default: all)."),
     medium: list[str] = typer.Option([], "--medium", help="Media for plate, rig and legs (repeat; default: the five of Li 2013, legs only where Fig. S5 has curves)."),
-    dx_mm: Optional[float] = typer.Option(None, "--dx-mm", help="Particle spacing, mm (default: 3; --quick 4)."),
+    dx_mm: Optional[float] = typer.Option(None, "--dx-mm", help="Particle spacing, mm (default: 2.5, the production resolution; --quick 4)."),
     omega: float = typer.Option(1.1, help="Angular speed of the leg tests, rad/s (1.1 is 5.5 x fewer steps than 0.2; the rate check is in docs/sph.md)."),
 ):
     """Run the SPH validation scenes and compare with measurements: validation.json (quantity,

@@ -174,7 +174,9 @@ def validate(*, quick=False, scenes=SCENES, media=None, dx=None, omega=1.1, prog
 
     for s in scenes:
         choice("scene", s, list(SCENES))
-    dx = dx or (4e-3 if quick else 3e-3)
+    from .api import FULL_DX
+
+    dx = dx or (4e-3 if quick else FULL_DX)  # full: the production resolution (docs/sph.md, Convergence)
     media = list(media) if media else list(MATERIALS)
     for m in media:
         choice("medium", m, list(MATERIALS))
