@@ -4,13 +4,16 @@ spacings, with the change between successive resolutions.
 
     python benchmarks/sph_convergence.py [--medium "poppy LP"] [--dx-mm 2 2.5 3 4]
         [--youngs-mpa 0.25] [--omega 1.1] [--realizations 2] [--threads 1]
+        [--scenes plate flat c reverse-c] [--dp-match plane-strain|bui2008]
 
 Writes benchmarks/results/sph_convergence.json after every run (finished runs are kept and
-skipped on a rerun, so the study can be interrupted and resumed). A study, not a timing
+skipped on a rerun, so the study can be interrupted and resumed; several studies may run at
+once: each merges its runs into the file under a lock). A study, not a timing
 benchmark: wall times are recorded as run, on whatever else the machine was doing."""
 from __future__ import annotations
 
 import argparse
+import fcntl
 import json
 import os
 import platform
@@ -21,11 +24,11 @@ OUT = Path(__file__).parent / "results" / "sph_convergence.json"
 LEGS = ("flat", "c", "reverse-c")
 
 
-def _changes(runs: dict, medium: str, e: float) -> dict:
+def _changes(runs: dict, medium: str, e: float, match: str) -> dict:
     """Relative change of every quantity between successive resolutions (coarse -> fine)."""
     by_dx: dict[float, dict] = {}
     for r in runs.values():
-        if r["medium"] == medium and r["youngs_MPa"] == e:
+        if r["medium"] == medium and r["youngs_MPa"] == e and r["dp_match"] == match:
             q = by_dx.setdefault(r["dx_mm"], {})
             if r["scene"] == "plate":
                 q["plate alpha_z (through origin)"] = r["alpha_z_origin_N_cm3"]
@@ -41,6 +44,23 @@ def _changes(runs: dict, medium: str, e: float) -> dict:
     return out
 
 
+def _merge_and_write(key: str, val: dict) -> None:
+    """Add one run to the results file, re-reading it under a lock so that concurrent studies
+    (other media or stiffnesses) do not overwrite each other's runs."""
+    from terradyn.io import atomic_write_text
+
+    with open(OUT.with_suffix(".lock"), "w") as lock:
+        fcntl.flock(lock, fcntl.LOCK_EX)
+        res = json.loads(OUT.read_text()) if OUT.exists() else {
+            "machine": f"{platform.machine()}, {os.cpu_count()} cores (shared with other work)",
+            "command": "python benchmarks/sph_convergence.py", "runs": {}}
+        res["runs"][key] = val
+        sets = sorted({(r["medium"], r["youngs_MPa"], r["dp_match"]) for r in res["runs"].values()})
+        res["changes"] = {f"{m}, E {e:g} MPa, {dm}": _changes(res["runs"], m, e, dm)
+                          for m, e, dm in sets}
+        atomic_write_text(OUT, json.dumps(res, indent=1))
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--medium", default="poppy LP")
@@ -49,10 +69,12 @@ def main() -> None:
     ap.add_argument("--omega", type=float, default=1.1, help="leg angular speed, rad/s")
     ap.add_argument("--realizations", type=int, default=2)
     ap.add_argument("--threads", type=int, default=1)
+    ap.add_argument("--dp-match", default="plane-strain", choices=["plane-strain", "bui2008"],
+                    help="Drucker-Prager match to Mohr-Coulomb (terradyn.sph.materials)")
+    ap.add_argument("--scenes", nargs="+", default=["plate", *LEGS], choices=["plate", *LEGS])
     a = ap.parse_args()
     os.environ["NUMBA_NUM_THREADS"] = str(a.threads)  # before numba is imported
 
-    from terradyn.io import atomic_write_text
     from terradyn.sph.calibration import plate_slope
     from terradyn.sph.materials import from_medium
     from terradyn.sph.state import SPHConfig
@@ -60,20 +82,18 @@ def main() -> None:
     from terradyn.sph.validation import alpha_z_plate_measured
     from terradyn.units import DEG, N_PER_CM3
 
-    res = json.loads(OUT.read_text()) if OUT.exists() else {
-        "machine": f"{platform.machine()}, {os.cpu_count()} cores (shared with other work)",
-        "command": "python benchmarks/sph_convergence.py", "runs": {}}
-    mat = from_medium(a.medium, youngs=a.youngs_mpa * 1e6)
+    done = json.loads(OUT.read_text())["runs"] if OUT.exists() else {}
+    mat = from_medium(a.medium, youngs=a.youngs_mpa * 1e6, dp_match=a.dp_match)
     for dx in a.dx_mm:
         cfg = SPHConfig(dx=dx * 1e-3)
-        for scene in ("plate",) + LEGS:
-            key = f"{scene}|{a.medium}|{a.youngs_mpa:g}MPa|{dx:g}mm|omega{a.omega:g}"
-            if key in res["runs"]:
+        for scene in a.scenes:
+            key = f"{scene}|{a.medium}|{a.youngs_mpa:g}MPa|{dx:g}mm|omega{a.omega:g}|{a.dp_match}"
+            if key in done:
                 continue
             t0 = time.perf_counter()
             base = {"scene": scene, "medium": a.medium, "youngs_MPa": a.youngs_mpa, "dx_mm": dx,
                     "omega": a.omega, "friction_deg": round(mat.friction / DEG, 2),
-                    "threads": a.threads}
+                    "threads": a.threads, "dp_match": a.dp_match}
             if scene == "plate":
                 r = plate_slope(mat, config=cfg, realizations=a.realizations)
                 val = base | {"alpha_z_origin_N_cm3": round(r["alpha_z"] / N_PER_CM3, 4),
@@ -86,9 +106,7 @@ def main() -> None:
                 val = base | {c: {k: round(v, 4) for k, v in r[c].items() if isinstance(v, float)}
                               for c in ("Fx", "Fz")}
             val["wall_s"] = round(time.perf_counter() - t0, 1)
-            res["runs"][key] = val
-            res["changes"] = {f"{a.medium}, E {a.youngs_mpa:g} MPa": _changes(res["runs"], a.medium, a.youngs_mpa)}
-            atomic_write_text(OUT, json.dumps(res, indent=1))
+            _merge_and_write(key, val)
             print(key, json.dumps(val), flush=True)
 
 

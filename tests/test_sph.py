@@ -8,22 +8,58 @@ import pytest
 
 import terradyn as td
 from terradyn.errors import InputError
-from terradyn.sph import SPHConfig, SPHInstabilityError, kernels as K, scenes, solver, validation
+from terradyn.sph import SPHConfig, SPHInstabilityError, kernels as K, physics, scenes, solver, validation
 from terradyn.sph.materials import MATERIALS, GranularMaterial, from_medium
 from terradyn.units import DEG
 
 
 # ------------------------------------------------------------------------------- materials
-def test_drucker_prager_constants_follow_bui_2008_plane_strain_match():
+def test_drucker_prager_constants_match_mohr_coulomb_in_plane_strain():
     m = MATERIALS["3 mm glass CP"]
-    t = math.tan(21 * DEG)
-    assert m.alpha_phi == pytest.approx(t / math.sqrt(9 + 12 * t * t))
+    assert m.dp_match == "plane-strain"
+    assert m.alpha_phi == pytest.approx(math.sin(21 * DEG) / 3)
     assert m.k_c == 0.0
     assert m.density == pytest.approx(2600 * 0.63)  # Li 2013 Table S1
     assert MATERIALS["poppy LP"].friction == pytest.approx(36 * DEG)
     c = GranularMaterial("x", 1500, 1e6, 0.3, 30 * DEG, cohesion=100.0)
-    assert c.k_c == pytest.approx(300 / math.sqrt(9 + 12 * math.tan(30 * DEG) ** 2))
-    assert all(k in m.sources for k in ("density", "friction", "poisson", "youngs"))
+    assert c.k_c == pytest.approx(100 * math.cos(30 * DEG))
+    # the former match (Bui et al. 2008 eq. 22, associated flow), kept for comparison
+    b = from_medium("3 mm glass CP", dp_match="bui2008")
+    t = math.tan(21 * DEG)
+    assert b.alpha_phi == pytest.approx(t / math.sqrt(9 + 12 * t * t))
+    assert c.with_(dp_match="bui2008").k_c == pytest.approx(300 / math.sqrt(9 + 12 * math.tan(30 * DEG) ** 2))
+    assert all(k in m.sources for k in ("density", "friction", "poisson", "youngs",
+                                        "drucker_prager_constants"))
+    with pytest.raises(InputError, match="dp_match"):
+        from_medium("poppy LP", dp_match="associated")
+
+
+def _simple_shear_friction(mat, p0=-1000.0, rate=1.0, dt=1e-5, steps=20000):
+    """Mobilised friction angle (deg) of one particle sheared in plane strain (v_x = rate z)
+    until it flows steadily: asin(tau_max / p) of its in-plane stresses."""
+    rho, sxx, szz, sxz, syy = mat.density, p0, p0, 0.0, p0
+    for _ in range(steps):
+        rho, sxx, szz, sxz, syy = physics.dp_update(
+            rho, 0.0, 0.0, rate, 0.0, 0.0, sxx, szz, sxz, syy, dt, mat.shear_modulus,
+            mat.bulk_modulus, mat.alpha_phi, mat.k_c, 0.5 * mat.density, 2 * mat.density,
+            0.0, 0.0)
+    p = -0.5 * (sxx + szz)
+    return math.degrees(math.asin(math.hypot(0.5 * (sxx - szz), sxz) / p)), syy + p
+
+
+@pytest.mark.parametrize("medium", ["3 mm glass CP", "poppy LP", "poppy CP"])
+def test_plane_strain_flow_mobilises_the_materials_friction_angle(medium):
+    """With non-dilatant flow the out-of-plane stress settles at the in-plane mean, and the
+    default match makes the cone the Mohr-Coulomb line: simple shear flows at phi. The former
+    associated-flow match (Bui 2008 eq. 22) mobilises only asin(3 alpha_phi) < phi."""
+    m = MATERIALS[medium]
+    phi_mob, syy_dev = _simple_shear_friction(m)
+    assert phi_mob == pytest.approx(m.friction / DEG, abs=1e-6)
+    assert abs(syy_dev) < 1e-9 * 1000
+    b = m.with_(dp_match="bui2008")
+    phi_b, _ = _simple_shear_friction(b)
+    assert phi_b == pytest.approx(b.mobilised_friction / DEG, abs=1e-6)
+    assert phi_b < m.friction / DEG - 0.4  # 20.5 / 33.8 / 42.4 deg for 21 / 36 / 47
 
 
 def test_material_rejects_bad_input():

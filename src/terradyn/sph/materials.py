@@ -1,10 +1,27 @@
 """Granular materials for the SPH model: elastic-perfectly plastic Drucker-Prager.
 
-Every parameter carries its source (``sources``). The Drucker-Prager constants follow the
-plane-strain match to Mohr-Coulomb of Bui, Fukagawa, Sako & Ohno (2008), Int. J. Numer.
-Anal. Meth. Geomech. 32:1537, eq. 22:
+Every parameter carries its source (``sources``). The Drucker-Prager cone
+sqrt(J2) + alpha_phi I1 - k_c = 0 is matched to the Mohr-Coulomb friction angle phi and
+cohesion c in plane strain, for the flow the model has (``dp_match``):
 
-    alpha_phi = tan(phi) / sqrt(9 + 12 tan^2 phi),   k_c = 3 c / sqrt(9 + 12 tan^2 phi).
+* ``"plane-strain"`` (default): the match for non-dilatant plastic flow (psi = 0, the flow of
+  these media at their critical state), alpha_phi = sin(phi) / 3, k_c = c cos(phi). With
+  psi = 0 the out-of-plane deviator vanishes in plane-strain plastic flow (sigma_yy = the mean
+  of the in-plane principal stresses), so sqrt(J2) = tau_max and the cone is the Mohr-Coulomb
+  line tau_max = sin(phi) p + c cos(phi) exactly: the model flows at the friction angle it is
+  given (tested: simple shear of one particle mobilises phi). This is the plane-strain match
+  of the ABAQUS Analysis User's Manual ("Matching Mohr-Coulomb parameters to the
+  Drucker-Prager model", plane strain, non-dilatant flow: tan beta = sqrt(3) sin phi in its
+  q-p form).
+* ``"bui2008"``: Bui, Fukagawa, Sako & Ohno (2008), Int. J. Numer. Anal. Meth. Geomech.
+  32:1537, eq. 22, alpha_phi = tan(phi) / sqrt(9 + 12 tan^2 phi), k_c = 3 c / sqrt(9 + 12
+  tan^2 phi): the plane-strain match for *associated* flow (psi = phi). Used with the
+  non-dilatant flow rule it mobilises only asin(3 alpha_phi): 20.5 deg for 21, 33.8 for 36,
+  42.4 for 47 deg. It was the model's match before 2026-12-02 and is kept for comparison.
+
+The dilatancy constant alpha_psi = tan(psi) / sqrt(9 + 12 tan^2 psi) = sin(psi) /
+sqrt(9 + 3 sin^2 psi) makes the plastic volume rate per unit in-plane shear rate sin(psi) in
+plane strain (the Mohr-Coulomb definition of psi), in both matches.
 
 Bulk densities, friction angles: Li, Zhang & Goldman (2013) supplement Table S1 (grain density
 x volume fraction; the angle of repose taken as the friction angle of a cohesionless packing,
@@ -41,7 +58,9 @@ class GranularMaterial:
     friction (phi) and dilatancy (psi, 0 <= psi <= phi) angles in rad; cohesion Pa; k0:
     lateral stress ratio of the geostatic initial state (None: Jaky's 1 - sin phi);
     critical_density: the bulk density (kg/m^3, below ``density``) at which a dilatant
-    material stops dilating (its critical-state packing; required when psi > 0)."""
+    material stops dilating (its critical-state packing; required when psi > 0); dp_match:
+    how the Drucker-Prager constants match phi and c ("plane-strain" or "bui2008", module
+    docstring)."""
 
     name: str
     density: float
@@ -52,6 +71,7 @@ class GranularMaterial:
     dilatancy: float = 0.0
     k0: float | None = None
     critical_density: float | None = None
+    dp_match: str = "plane-strain"
     sources: dict = field(default_factory=dict, compare=False)
 
     def __post_init__(self):
@@ -69,6 +89,7 @@ class GranularMaterial:
                      self.density, "kg/m^3")
         if self.k0 is not None:
             in_range("k0", self.k0, 0.0, 1.0)
+        choice("dp_match", self.dp_match, list(DP_MATCHES))
 
     @property
     def shear_modulus(self) -> float:
@@ -85,6 +106,9 @@ class GranularMaterial:
 
     @property
     def alpha_phi(self) -> float:
+        """Friction constant of the cone (module docstring: the match ``dp_match``)."""
+        if self.dp_match == "plane-strain":
+            return math.sin(self.friction) / 3.0
         t = math.tan(self.friction)
         return t / math.sqrt(9 + 12 * t * t)
 
@@ -102,8 +126,17 @@ class GranularMaterial:
 
     @property
     def k_c(self) -> float:
+        """Cohesion constant of the cone, Pa (the match ``dp_match``)."""
+        if self.dp_match == "plane-strain":
+            return self.cohesion * math.cos(self.friction)
         t = math.tan(self.friction)
         return 3 * self.cohesion / math.sqrt(9 + 12 * t * t)
+
+    @property
+    def mobilised_friction(self) -> float:
+        """The friction angle (rad) the model mobilises in non-dilatant plane-strain plastic
+        flow, asin(3 alpha_phi): ``friction`` itself with the default match."""
+        return math.asin(min(1.0, 3.0 * self.alpha_phi))
 
     @property
     def lateral_ratio(self) -> float:
@@ -117,10 +150,19 @@ class GranularMaterial:
                 "poisson": self.poisson, "friction_deg": self.friction / DEG,
                 "cohesion_Pa": self.cohesion, "dilatancy_deg": self.dilatancy / DEG,
                 "critical_density_kg_m3": self.critical_density,
-                "k0": self.lateral_ratio, "sources": self.sources}
+                "k0": self.lateral_ratio, "dp_match": self.dp_match,
+                "mobilised_friction_deg": self.mobilised_friction / DEG, "sources": self.sources}
 
 
 NUMERICAL_E = 2.5e5
+
+#: The Drucker-Prager matches to Mohr-Coulomb (module docstring), with their sources.
+DP_MATCHES = {
+    "plane-strain": ("plane-strain match for non-dilatant flow: alpha_phi = sin(phi) / 3, "
+                     "k_c = c cos(phi) (ABAQUS Analysis User's Manual, 'Matching Mohr-Coulomb "
+                     "parameters to the Drucker-Prager model', plane strain, psi = 0)"),
+    "bui2008": f"plane-strain match for associated flow, {BUI2008}, eq. 22",
+}
 
 
 BOLTON1986 = ("M. D. Bolton, The strength and dilatancy of sands, Geotechnique 36:65-78 (1986): "
@@ -129,7 +171,7 @@ BOLTON1986 = ("M. D. Bolton, The strength and dilatancy of sands, Geotechnique 3
 
 def from_medium(medium: str, youngs: float = NUMERICAL_E, poisson: float = 0.3,
                 friction_deg: float | None = None, friction: str = "repose",
-                dilatancy: str = "none") -> GranularMaterial:
+                dilatancy: str = "none", dp_match: str = "plane-strain") -> GranularMaterial:
     """The SPH material for a medium of :data:`terradyn.media.MEDIA` (Li 2013 Table S1).
 
     ``friction``: "repose" (default: the angle of repose, Table S1) or "calibrated" (the
@@ -143,9 +185,13 @@ def from_medium(medium: str, youngs: float = NUMERICAL_E, poisson: float = 0.3,
     packing Li 2013 also measured (poppy CP, 0.3 mm glass CP) takes the loose packing as its
     critical state: phi = the loose packing's angle, psi = (phi_CP - phi_LP) / 0.8 (Bolton
     1986, plane strain), and dilation stops at the loose packing's bulk density. A loose
-    packing is at its critical state (psi = 0)."""
+    packing is at its critical state (psi = 0).
+
+    ``dp_match``: "plane-strain" (default) or "bui2008", how the cone's constants match phi
+    (module docstring)."""
     from .calibration import shipped
 
+    choice("dp_match", dp_match, list(DP_MATCHES))
     choice("medium", medium, list(MEDIA))
     choice("friction", friction, ["calibrated", "repose"])
     m = MEDIA[medium]
@@ -184,7 +230,7 @@ def from_medium(medium: str, youngs: float = NUMERICAL_E, poisson: float = 0.3,
         psi_src = f"{BOLTON1986}, with phi_max, phi_crit = Table S1 angles of CP, LP"
     return GranularMaterial(
         name=medium, density=m.bulk_density, youngs=youngs, poisson=poisson, friction=phi,
-        dilatancy=psi, critical_density=rho_crit,
+        dilatancy=psi, critical_density=rho_crit, dp_match=dp_match,
         sources={
             "dilatancy": psi_src,
             "density": f"grain density x volume fraction, {LI2013}, Table S1",
@@ -193,7 +239,7 @@ def from_medium(medium: str, youngs: float = NUMERICAL_E, poisson: float = 0.3,
             "youngs": "numerical stiffness (see terradyn.sph.materials docstring)",
             "cohesion": "0: dry cohesionless grains",
             "k0": f"Jaky 1 - sin(phi): {JAKY1944}",
-            "drucker_prager_constants": f"plane-strain Mohr-Coulomb match, {BUI2008}, eq. 22",
+            "drucker_prager_constants": DP_MATCHES[dp_match],
         })
 
 
@@ -203,7 +249,7 @@ MATERIALS: dict[str, GranularMaterial] = {name: from_medium(name) for name in ME
 
 def from_properties(name: str, density: float, friction_deg: float, *,
                     youngs: float = NUMERICAL_E, poisson: float = 0.3,
-                    cohesion: float = 0.0) -> GranularMaterial:
+                    cohesion: float = 0.0, dp_match: str = "plane-strain") -> GranularMaterial:
     """A user's medium from its measured properties (SI; friction in deg): bulk density
     (grain density x volume fraction), friction angle (for the SPH's plane-strain model,
     best the angle :func:`terradyn.sph.calibration.calibrate_friction` finds from one plate
@@ -211,9 +257,10 @@ def from_properties(name: str, density: float, friction_deg: float, *,
     positive("density", density, "kg/m^3")
     phi = in_range("friction", friction_deg, 0, 80, "deg") * DEG
     return GranularMaterial(name=name, density=density, youngs=youngs, poisson=poisson,
-                            friction=phi, cohesion=cohesion,
+                            friction=phi, cohesion=cohesion, dp_match=dp_match,
                             sources={"density": "user", "friction": "user",
                                      "poisson": BUI2008,
+                                     "drucker_prager_constants": DP_MATCHES[dp_match],
                                      "youngs": "numerical stiffness (see terradyn.sph.materials)",
                                      "k0": f"Jaky 1 - sin(phi): {JAKY1944}"})
 
