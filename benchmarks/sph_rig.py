@@ -5,8 +5,8 @@ as fractions of the largest measured |alpha_z| (target <= 0.20 each).
     python benchmarks/sph_rig.py --medium "poppy LP" [--quick] [--dx-mm 4]
         [--dp-match plane-strain|bui2008] [--threads 1] [--figure docs/figures/sph_rig_poppy_LP.png]
 
-Writes benchmarks/results/sph_rig_<medium>.json (the file the report and docs/sph.md read)
-once the grid is complete; every finished point is kept in
+Writes benchmarks/results/sph_rig_<medium>.json (sph_rig_<medium>_quick.json for the subset;
+the files the report and docs/sph.md read) once the grid is complete; every finished point is kept in
 benchmarks/results/sph_rig_<medium>.partial.json, so an interrupted study resumes where it
 stopped. A study, not a timing benchmark: the wall time is recorded as run."""
 from __future__ import annotations
@@ -40,7 +40,7 @@ def main() -> None:
     from terradyn.units import DEG, N_PER_CM3
 
     mat = from_medium(a.medium, dp_match=a.dp_match)
-    stem = "sph_rig_" + a.medium.replace(" ", "_")
+    stem = "sph_rig_" + a.medium.replace(" ", "_") + ("_quick" if a.quick else "")
     final, partial = RES / f"{stem}.json", RES / f"{stem}.partial.json"
     settings = {"dx_mm": a.dx_mm, "dp_match": a.dp_match, "quick": a.quick,
                 "friction_deg": round(mat.friction / DEG, 3), "youngs_MPa": mat.youngs / 1e6,

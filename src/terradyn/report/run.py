@@ -123,12 +123,27 @@ def provenance(started: float) -> dict:
             "total_seconds": round(time.perf_counter() - started, 2)}
 
 
+def _made_with(path: Path) -> str:
+    """' (dx 4 mm, Drucker-Prager match bui2008)': the model settings a shipped SPH result file
+    records, so that a report never passes off an older model's numbers as today's."""
+    try:
+        st = json.loads(Path(path).read_text()).get("settings", {})
+    except (OSError, ValueError):
+        return ""
+    dx = st.get("dx_mm", st["dx_m"] * 1e3 if "dx_m" in st else None)
+    match = st.get("dp_match")
+    match = ", ".join(match) if isinstance(match, list) else match
+    bits = ([f"dx {dx:g} mm"] if dx else []) + ([f"Drucker-Prager match {match}"] if match else [])
+    return f" ({', '.join(bits)})" if bits else ""
+
+
 def _sph_inputs(tier: str, out: Path, code: str, say, regenerate: bool) -> tuple[list, str, list, dict]:
     """The SPH validation results the parts read: the shipped files (quick, standard) or a
     fresh ``validate`` run (full; cached like a part). Returns (results, label, files, timing)."""
     if tier != "full":
         files = P.sph_result_files()
-        label = ("the shipped result files " + ", ".join(f"benchmarks/results/{f.name}" for f in files)
+        label = ("the shipped result files " + ", ".join(f"benchmarks/results/{f.name}{_made_with(f)}"
+                                                         for f in files)
                  if files else "no shipped SPH result files found (no source checkout)")
         return P.load_sph_results(files), label, files, {}
     from ..sph.suite import validate

@@ -266,7 +266,7 @@ def validate(*, quick=False, scenes=SCENES, media=None, dx=None, omega=1.1, prog
                                           title=f"{leg} leg, {m}, omega = {omega:g} rad/s")
     return {"checks": [c.describe() for c in checks], "details": details,
             "settings": {"quick": quick, "dx_m": dx, "omega_rad_s": omega, "scenes": list(scenes),
-                         "media": media}}
+                         "media": media, "dp_match": sorted({material(m).dp_match for m in media})}}
 
 
 def summary(result: dict) -> dict:
