@@ -143,3 +143,24 @@ def test_validate_quick_scenes_compare_with_the_published_numbers(tmp_path):
     for c in res["checks"]:
         assert c["source"] and c["tolerance"] and c["verdict"] in ("pass", "fail")
     assert (tmp_path / "columns.png").is_file() and (tmp_path / "bed.png").is_file()
+
+
+def test_presets_take_a_shipped_plate_calibration_of_the_same_model(monkeypatch):
+    cal = {"friction_deg": 33.0, "youngs_Pa": 4e5, "dx_m": 2.5e-3, "alpha_z_measured_N_per_cm3": 0.35,
+           "relative_difference": 0.01, "dp_match": "plane-strain"}
+    monkeypatch.setattr(calibration, "shipped", lambda: {"poppy LP": cal})
+    m = materials.from_medium("poppy LP")  # default: the shipped calibration
+    assert m.friction == pytest.approx(33 * DEG) and m.youngs == 4e5
+    assert m.sources["friction"].startswith("calibrated")
+    assert materials.from_medium("poppy LP", youngs=1e6).youngs == 1e6  # a given E is kept
+    r = materials.from_medium("poppy LP", friction="repose")
+    assert r.friction == pytest.approx(36 * DEG) and "repose" in r.sources["friction"]
+    assert materials.from_medium("poppy LP", friction_deg=40).friction == pytest.approx(40 * DEG)
+    # a calibration made for the other cone is not one of this model
+    b = materials.from_medium("poppy LP", dp_match="bui2008")
+    assert b.friction == pytest.approx(36 * DEG)
+    with pytest.raises(InputError, match="friction"):
+        materials.from_medium("poppy LP", dp_match="bui2008", friction="calibrated")
+    # media without a calibration keep their repose angle; Bolton sets its own angle
+    assert materials.from_medium("poppy CP").friction == pytest.approx(47 * DEG)
+    assert materials.from_medium("poppy CP", dilatancy="bolton").friction == pytest.approx(36 * DEG)

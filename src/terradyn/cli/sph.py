@@ -27,7 +27,7 @@ _BACKEND = typer.Option(Backend.cpu, "--backend",
                              "or auto (the GPU when one is usable).")
 _MEDIUM = typer.Option("3 mm glass CP", help="Medium (Li 2013 Table S1 name), e.g. '3 mm glass CP', 'poppy LP'; with --density-kg-m3, the name of your own medium.")
 _DENSITY = typer.Option(None, "--density-kg-m3", help="Your own medium: bulk density, kg/m^3 (needs --friction-deg; calibrate it with 'terradyn sph calibrate').")
-_FRICTION = typer.Option(None, "--friction-deg", help="Friction angle, deg (default: the medium's angle of repose, Li 2013 Table S1).")
+_FRICTION = typer.Option(None, "--friction-deg", help="Friction angle, deg (default: the medium's plate-test calibration shipped with terradyn where there is one, else its angle of repose, Li 2013 Table S1; docs/sph.md).")
 _DILATANCY = typer.Option("none", "--dilatancy", help="Flow rule: none (psi = 0) or bolton (a CP medium dilates until its LP packing: psi = (phi_CP - phi_LP) / 0.8, Bolton 1986; poppy CP, 0.3 mm glass CP).")
 _BOUNDARY = typer.Option("resolved", "--boundary", help="Leg boundary: resolved (sides kept apart, contact at dx/4) or guard (the model before issue 17).")
 

@@ -21,7 +21,7 @@ def calibrate_cmd(
     alpha_z_n_cm3: Optional[float] = typer.Option(None, "--alpha-z-n-cm3", help="A user's medium: measured plate-test slope alpha_z(0, pi/2), N/cm^3."),
     name: str = typer.Option("custom", help="A user's medium: its name in the output."),
     friction_start_deg: float = typer.Option(30.0, help="A user's medium: first friction angle of the search, deg."),
-    dx_mm: float = typer.Option(4.0, "--dx-mm", help="Particle spacing of the plate test, mm (the resolution the medium will run at)."),
+    dx_mm: float = typer.Option(2.5, "--dx-mm", help="Particle spacing of the plate test, mm (the resolution the medium will run at; 2.5 is the production resolution, docs/sph.md)."),
     youngs_mpa: float = typer.Option(0.25, "--youngs-mpa", help="Young's modulus of the SPH material, MPa (numerical stiffness; at friction angles above ~40 deg the plate test needs >= 1 MPa, docs/sph.md)."),
     tol: float = typer.Option(0.03, help="Relative tolerance on the plate slope."),
     realizations: int = typer.Option(2, help="Plate runs averaged per friction angle (single runs scatter by about 10 %)."),
@@ -32,8 +32,8 @@ def calibrate_cmd(
 
     The plate is pushed straight down in the same 2D SPH set-up the model runs in; the
     friction angle is searched until its stress-depth slope matches the measured one. Leg
-    forces are never used. The shipped calibration is `terradyn sph calibrate --dx-mm 4
-    -o src/terradyn/data/sph_calibration.json`.
+    forces are never used. The shipped calibration is `terradyn sph calibrate --dx-mm 2.5
+    -o src/terradyn/data/sph_calibration.json` (the production resolution).
     """
     import datetime
     import platform
@@ -82,7 +82,8 @@ def calibrate_cmd(
         cal = calibrate_friction(mat, target, dx=dx, tol=tol, realizations=realizations,
                                  max_evals=max_evals,
                                  report=lambda p, a: err(f"  phi = {p:.2f} deg -> alpha_z = {a:.4f} N/cm^3"))
-        result[mat.name] = cal.describe() | {"density_kg_m3": mat.density, "youngs_Pa": mat.youngs}
+        result[mat.name] = cal.describe() | {"density_kg_m3": mat.density, "youngs_Pa": mat.youngs,
+                                             "dp_match": mat.dp_match}
         if not cal.converged:
             err(f"  not converged ({cal.note}): best phi = {cal.friction_deg:.2f} deg")
     if out is None:

@@ -26,7 +26,7 @@ OPTIONS = (
     Option("bed_width_cm", float, None, "cm", 0, None, lo_open=True, help="Bed width (default: from the path)."),
     Option("bed_depth_cm", float, None, "cm", 0, None, lo_open=True, help="Bed depth (default: from the path)."),
     Option("boundary", str, None, choices=("resolved", "guard"), help="Leg boundary model (default resolved)."),
-    Option("friction_deg", float, None, "deg", 0, 80, lo_open=True, help="Friction angle (default: the medium's repose angle)."),
+    Option("friction_deg", float, None, "deg", 0, 80, lo_open=True, help="Friction angle (default: the medium's shipped plate-test calibration, else its repose angle)."),
     Option("density_kg_m3", float, None, "kg/m^3", 0, None, lo_open=True, help="Your own medium's bulk density (needs friction_deg)."),
     Option("backend", str, None, choices=("cpu", "gpu", "auto"), help="Kernels (default cpu)."),
     Option("dilatancy", str, None, choices=("none", "bolton"),

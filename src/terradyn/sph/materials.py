@@ -169,17 +169,20 @@ BOLTON1986 = ("M. D. Bolton, The strength and dilatancy of sands, Geotechnique 3
               "plane strain phi_max - phi_crit = 0.8 psi_max")
 
 
-def from_medium(medium: str, youngs: float = NUMERICAL_E, poisson: float = 0.3,
-                friction_deg: float | None = None, friction: str = "repose",
+def from_medium(medium: str, youngs: float | None = None, poisson: float = 0.3,
+                friction_deg: float | None = None, friction: str | None = None,
                 dilatancy: str = "none", dp_match: str = "plane-strain") -> GranularMaterial:
     """The SPH material for a medium of :data:`terradyn.media.MEDIA` (Li 2013 Table S1).
 
-    ``friction``: "repose" (default: the angle of repose, Table S1) or "calibrated" (the
-    effective plane-strain friction angle at which the SPH plate test reproduces the
-    medium's measured alpha_z(0, pi/2), Li 2013 Table S3, from
-    ``terradyn/data/sph_calibration.json``, written by ``terradyn sph calibrate``; see
-    :mod:`terradyn.sph.calibration` and docs/sph.md for why it is not the default yet).
-    ``friction_deg`` overrides both.
+    ``friction``: "repose" (the angle of repose, Table S1) or "calibrated" (the plane-strain
+    friction angle at which the SPH plate test reproduces the medium's measured
+    alpha_z(0, pi/2), Li 2013 Table S3, from ``terradyn/data/sph_calibration.json``, written
+    by ``terradyn sph calibrate``, with the stiffness it was calibrated at; see
+    :mod:`terradyn.sph.calibration` and docs/sph.md). Default (None): "calibrated" where the
+    package ships a calibration of the medium made with the same ``dp_match`` and
+    non-dilatant flow, else "repose"; ``sources["friction"]`` says which.
+    ``friction_deg`` overrides both. ``youngs`` (Pa): default the stiffness the calibration
+    was made at (calibrated friction) or :data:`NUMERICAL_E`; a given value is used as given.
 
     ``dilatancy``: "none" (default; psi = 0) or "bolton": a closely packed medium whose loose
     packing Li 2013 also measured (poppy CP, 0.3 mm glass CP) takes the loose packing as its
@@ -193,26 +196,36 @@ def from_medium(medium: str, youngs: float = NUMERICAL_E, poisson: float = 0.3,
 
     choice("dp_match", dp_match, list(DP_MATCHES))
     choice("medium", medium, list(MEDIA))
-    choice("friction", friction, ["calibrated", "repose"])
+    choice("dilatancy", dilatancy, ["bolton", "none"])
     m = MEDIA[medium]
-    cal = shipped().get(medium) if friction == "calibrated" else None
+    found = shipped().get(medium)
+    if found is not None and found.get("dp_match", "bui2008") != dp_match:
+        found = None  # made for the other cone: not a calibration of this model
+    if friction is None:
+        friction = ("calibrated" if found is not None and friction_deg is None
+                    and dilatancy == "none" else "repose")
+    choice("friction", friction, ["calibrated", "repose"])
+    cal = found if friction == "calibrated" else None
     if friction == "calibrated" and cal is None and friction_deg is None:
-        raise InputError("friction", f"no shipped plate-test calibration for {medium!r}: run "
+        raise InputError("friction", f"no shipped plate-test calibration for {medium!r} "
+                                     f"(Drucker-Prager match {dp_match!r}): run "
                                      "'terradyn sph calibrate' and pass its friction_deg")
     if friction_deg is not None:
         phi = in_range("friction", friction_deg, 0, 80, "deg") * DEG
         src = "user"
     elif cal is not None:
         phi = cal["friction_deg"] * DEG
-        youngs = cal.get("youngs_Pa", youngs)  # the stiffness it was calibrated with
-        src = (f"calibrated: the SPH plate test (dx = {cal['dx_m'] * 1e3:g} mm) reproduces the "
+        e_cal = cal.get("youngs_Pa", NUMERICAL_E)  # the stiffness it was calibrated with
+        youngs = e_cal if youngs is None else youngs
+        src = (f"calibrated: the SPH plate test (dx = {cal['dx_m'] * 1e3:g} mm, E = "
+               f"{e_cal / 1e6:g} MPa, {dp_match} match) reproduces the "
                f"measured alpha_z(0, pi/2) = {cal['alpha_z_measured_N_per_cm3']:g} N/cm^3 "
                f"({LI2013}, Table S3) within {abs(cal['relative_difference']) * 100:.1f} %; "
                "terradyn sph calibrate")
     else:
         phi = m.repose_angle
         src = f"angle of repose, {LI2013}, Table S1"
-    choice("dilatancy", dilatancy, ["bolton", "none"])
+    youngs = NUMERICAL_E if youngs is None else youngs
     psi, rho_crit, psi_src = 0.0, None, "0: non-dilatant flow (Bui et al. 2008)"
     if dilatancy == "bolton" and medium.endswith(" CP"):
         loose = MEDIA.get(medium[:-3] + " LP")
