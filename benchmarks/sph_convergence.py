@@ -5,6 +5,7 @@ spacings, with the change between successive resolutions.
     python benchmarks/sph_convergence.py [--medium "poppy LP"] [--dx-mm 2 2.5 3 4]
         [--youngs-mpa 0.25] [--omega 1.1] [--realizations 2] [--threads 1]
         [--scenes plate flat c reverse-c] [--dp-match plane-strain|bui2008]
+(the medium's preset material: its shipped plate calibration where there is one)
 
 Writes benchmarks/results/sph_convergence.json after every run (finished runs are kept and
 skipped on a rerun, so the study can be interrupted and resumed; several studies may run at
@@ -24,11 +25,12 @@ OUT = Path(__file__).parent / "results" / "sph_convergence.json"
 LEGS = ("flat", "c", "reverse-c")
 
 
-def _changes(runs: dict, medium: str, e: float, match: str) -> dict:
-    """Relative change of every quantity between successive resolutions (coarse -> fine)."""
+def _changes(runs: dict, medium: str, e: float, match: str, phi: float) -> dict:
+    """Relative change of every quantity between successive resolutions (coarse -> fine) of
+    one material (medium, stiffness, Drucker-Prager match, friction angle)."""
     by_dx: dict[float, dict] = {}
     for r in runs.values():
-        if r["medium"] == medium and r["youngs_MPa"] == e and r["dp_match"] == match:
+        if (r["medium"], r["youngs_MPa"], r["dp_match"], r["friction_deg"]) == (medium, e, match, phi):
             q = by_dx.setdefault(r["dx_mm"], {})
             if r["scene"] == "plate":
                 q["plate alpha_z (through origin)"] = r["alpha_z_origin_N_cm3"]
@@ -55,9 +57,10 @@ def _merge_and_write(key: str, val: dict) -> None:
             "machine": f"{platform.machine()}, {os.cpu_count()} cores (shared with other work)",
             "command": "python benchmarks/sph_convergence.py", "runs": {}}
         res["runs"][key] = val
-        sets = sorted({(r["medium"], r["youngs_MPa"], r["dp_match"]) for r in res["runs"].values()})
-        res["changes"] = {f"{m}, E {e:g} MPa, {dm}": _changes(res["runs"], m, e, dm)
-                          for m, e, dm in sets}
+        sets = sorted({(r["medium"], r["youngs_MPa"], r["dp_match"], r["friction_deg"])
+                       for r in res["runs"].values()})
+        res["changes"] = {f"{m}, E {e:g} MPa, {dm}, phi {phi:g} deg": _changes(res["runs"], m, e, dm, phi)
+                          for m, e, dm, phi in sets}
         atomic_write_text(OUT, json.dumps(res, indent=1))
 
 
@@ -80,6 +83,7 @@ def main() -> None:
     from terradyn.sph.state import SPHConfig
     from terradyn.sph.suite import leg_vs_measured
     from terradyn.sph.validation import alpha_z_plate_measured
+    from terradyn.media import MEDIA
     from terradyn.units import DEG, N_PER_CM3
 
     done = json.loads(OUT.read_text())["runs"] if OUT.exists() else {}
@@ -88,6 +92,8 @@ def main() -> None:
         cfg = SPHConfig(dx=dx * 1e-3)
         for scene in a.scenes:
             key = f"{scene}|{a.medium}|{a.youngs_mpa:g}MPa|{dx:g}mm|omega{a.omega:g}|{a.dp_match}"
+            if abs(mat.friction / DEG - MEDIA[a.medium].repose_angle / DEG) > 1e-9:
+                key += f"|phi{mat.friction / DEG:.2f}"  # a friction angle other than the repose angle
             if key in done:
                 continue
             t0 = time.perf_counter()

@@ -39,7 +39,7 @@ def main() -> None:
         print(key, json.dumps(val), flush=True)
 
     jobs = [("plate", "0.3 mm glass CP", d) for d in ("none", "bolton")]
-    if not a.no_legs:  # the legs at the repose angle: benchmarks/results/sph_validate_legs_repose.json
+    if not a.no_legs:  # the legs at the repose angle (former match: sph_validate_legs_repose.json, git history)
         jobs.append(("flat", "0.3 mm glass CP", "bolton"))
     jobs += [("plate", "poppy CP", d) for d in ("none", "bolton")]
     if not a.no_legs:

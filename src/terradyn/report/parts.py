@@ -46,12 +46,14 @@ def repo_root() -> Path | None:
 
 
 def sph_result_files() -> list[Path]:
-    """The shipped SPH validation results (benchmarks/results/sph_validate_*.json, sph_rig_*.json)."""
+    """The shipped SPH validation results (benchmarks/results/sph_validate_*.json, sph_rig_*.json;
+    not the ``*.partial.json`` of a rig study still running)."""
     root = repo_root()
     if root is None:
         return []
     res = root / "benchmarks" / "results"
-    return sorted(res.glob("sph_validate_*.json")) + sorted(res.glob("sph_rig_*.json"))
+    files = sorted(res.glob("sph_validate_*.json")) + sorted(res.glob("sph_rig_*.json"))
+    return [f for f in files if not f.name.endswith(".partial.json")]
 
 
 # ------------------------------------------------------------------------ interpolators

@@ -23,9 +23,12 @@ The dilatancy constant alpha_psi = tan(psi) / sqrt(9 + 12 tan^2 psi) = sin(psi) 
 sqrt(9 + 3 sin^2 psi) makes the plastic volume rate per unit in-plane shear rate sin(psi) in
 plane strain (the Mohr-Coulomb definition of psi), in both matches.
 
-Bulk densities, friction angles: Li, Zhang & Goldman (2013) supplement Table S1 (grain density
-x volume fraction; the angle of repose taken as the friction angle of a cohesionless packing,
-the critical-state angle). Poisson's ratio 0.3: Bui et al. (2008). Young's modulus: a
+Bulk densities: Li, Zhang & Goldman (2013) supplement Table S1 (grain density x volume
+fraction). Friction angles: for each of the five media, the angle at which the SPH plate test
+at the production resolution reproduces the medium's measured plate slope alpha_z(0, pi/2)
+(Li 2013 Table S3), shipped in ``terradyn/data/sph_calibration.json`` (``terradyn sph
+calibrate``; the plate-down point is the only measurement that sets it, docs/sph.md); without
+a calibration, the angle of repose (Table S1) of a cohesionless packing. Poisson's ratio 0.3: Bui et al. (2008). Young's modulus: a
 *numerical* stiffness (0.25 MPa). Real packings are stiffer (tens of MPa), but the forces of
 slow, plastic flow hardly depend on it while rho g H / E << 1 (here < 0.7 %), and the explicit
 time step scales with 1/sqrt(E): 0.25 MPa keeps the sound speed (14 m/s) > 150 x the fastest
