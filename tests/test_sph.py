@@ -413,9 +413,12 @@ def test_leg_intrusion_lift_and_thrust_match_rft_in_magnitude(short_intrusion):
     sph_fz, rft_fz = ds.Fz.values[deep].mean(), rft.Fz.values[deep].mean()
     sph_fx, rft_fx = ds.Fx.values[deep].mean(), rft.Fx.values[deep].mean()
     assert sph_fz > 0 and sph_fx > 0  # lift and thrust during intrusion (Li 2013)
-    # same order as the measured coefficients; plane strain (no flow around the plate's
-    # sides) makes SPH stiffer than the 3D experiment: ratio ~2.2 for lift here (docs/sph.md)
-    assert 0.5 < sph_fz / rft_fz < 3.0
+    # same order as the measured coefficients. This quick run (4 mm, omega 2) is above the
+    # converged model (docs/sph.md, Convergence: flat-leg lift -18 % from 4 to 2.5 mm) and
+    # RFT under-predicts the flat leg's measured lift (poppy LP: 2.8 against 4.2 N): the lift
+    # ratio is ~3.2 here with the plate-calibrated 24.1 deg (~2.2 with the former 21 deg and
+    # match); at the production resolution in poppy LP it is 2.0 (sph_validate_legs.json)
+    assert 0.5 < sph_fz / rft_fz < 4.0
     assert 0.5 < sph_fx / rft_fx < 3.0
     # forces grow as the leg goes in
     i0 = td.series.inputs_of(ds)["run"]["contact_samples"][0]
@@ -435,7 +438,9 @@ def test_c_leg_intrusion_lift_matches_rft_and_exceeds_the_flat_legs(short_intrus
     rft = td.rft.simulate(leg, mot, td.stress_model("3 mm glass CP"))
     win = slice(-65, -55)
     sph_fz, rft_fz = float(ds.Fz.sel(theta=win).mean()), float(rft.Fz.sel(theta=win).mean())
-    assert 0.75 < sph_fz / rft_fz < 1.25
+    # 1.34 at these 5 mm particles with the plate-calibrated 24.1 deg (1.0-1.2 with the former
+    # 21 deg); the C leg's peak lift at 2.5 mm in poppy LP is 1.16 x RFT's, 1.10 x measured
+    assert 0.75 < sph_fz / rft_fz < 1.5
     assert sph_fz > 1.3 * float(flat.Fz.sel(theta=win).mean())
     assert float(ds.Fx.sel(theta=win).mean()) > 0  # thrust
 
