@@ -189,6 +189,32 @@ def _sph_leg_rms(files) -> dict:
     return out
 
 
+def _sph_dataset_note(path=None) -> str:
+    """'the shipped datasets/sph_legs_speeds.nc (dx 2.5 mm, resolved leg boundary, ...)': what
+    model made the SPH set, read from its first case's recorded inputs."""
+    import json
+
+    import xarray as xr
+
+    from ..dddas.studies import find_sph_dataset
+
+    path = path or find_sph_dataset()
+    if path is None:
+        return "no SPH dataset"
+    try:
+        with xr.open_dataset(path) as ds:
+            params = json.loads(str(ds["params"].values[0]))["model"]
+            mat = json.loads(str(ds["input"].values[0])).get("material", {})
+    except (OSError, KeyError, ValueError, IndexError):
+        return f"{Path(path).name} (its model settings could not be read)"
+    match = mat.get("dp_match", "bui2008 (former)")
+    bits = [f"dx {params.get('dx_mm', '?'):g} mm" if isinstance(params.get("dx_mm"), (int, float)) else "dx ?",
+            f"{params.get('boundary', 'guard')} leg boundary",
+            f"phi {mat['friction_deg']:.1f} deg" if "friction_deg" in mat else "phi ?",
+            f"Drucker-Prager match {match}"]
+    return f"{Path(path).name} ({', '.join(bits)})"
+
+
 def rft_sph_part(out: Path, s: dict) -> list[Card]:
     from .. import studies
     from ..geometry import make_leg
@@ -229,7 +255,7 @@ def rft_sph_part(out: Path, s: dict) -> list[Card]:
                       "RFT vs SPH peaks differ by 0.3 % (C-shaped leg lift), 5.3 % (C drag), 8.9 % (flat lift) "
                       "and 15.2 % (flat drag). Both models show suction for the flat and reverse C legs, and "
                       "higher lift in intrusion.", src, rows, ["rft_vs_sph.png"],
-                      note="SPH: the shipped datasets/sph_legs_speeds.nc (dx 4 mm, older 'guard' leg boundary) "
+                      note=f"SPH: {_sph_dataset_note(s.get('sph_dataset'))} "
                            "at 0.2 rad/s; the thesis's SPH resolution differs. Tolerance +-5 percentage points is ours."
                       if sph else "The shipped SPH dataset was not found: no SPH numbers in this run."))
     # (b) RFT and SPH against the measured curves (Li 2013 Fig. S5), MSE bars
