@@ -471,7 +471,8 @@ def test_shipped_specs_plan():
         s = sw.load(root / "datasets" / "sph_legs_speeds.toml")
         assert len(s.cases) == 30
         assert sorted({c.params["motion"]["omega_rad_s"] for c in s.cases}) == [x / 10 for x in range(2, 12)]
-        assert {c.params["model"]["dx_mm"] for c in s.cases} == {4.0}  # the SPH validation's resolution (docs/sph.md, scene 4)
+        assert {c.params["model"]["dx_mm"] for c in s.cases} == {2.5}  # the production resolution (docs/sph.md, Convergence)
+        assert {c.params["model"]["boundary"] for c in s.cases} == {"resolved"}
 
 
 def test_shipped_foot_dataset_is_what_its_spec_gives():
