@@ -34,9 +34,8 @@ def main() -> None:
     import numpy as np
 
     from terradyn.io import atomic_write_text
-    from terradyn.media import stress_model
     from terradyn.sph.materials import from_medium
-    from terradyn.sph.suite import rig_grid, rig_point
+    from terradyn.sph.suite import rig_against_table, rig_grid, rig_point
     from terradyn.units import DEG, N_PER_CM3
 
     mat = from_medium(a.medium, dp_match=a.dp_match)
@@ -66,18 +65,11 @@ def main() -> None:
             atomic_write_text(partial, json.dumps({"settings": settings, "points": done}))
             print(f"beta {b / DEG:6.1f} gamma {g / DEG:6.1f}: alpha_z {done[key][0]:.4f} "
                   f"alpha_x {done[key][1]:.4f} N/cm^3 ({done[key][2]} s)", flush=True)
-    B, G = np.meshgrid(betas, gammas, indexing="ij")
-    az = np.array([[done[f"{b:.6f},{g:.6f}"][0] for g in gammas] for b in betas])
-    ax = np.array([[done[f"{b:.6f},{g:.6f}"][1] for g in gammas] for b in betas])
-    mx, mz = stress_model(a.medium, "table").alpha(B, G)
-    mz, mx = np.asarray(mz) / N_PER_CM3, np.asarray(mx) / N_PER_CM3
-    scale = float(np.abs(mz).max())
-    out = {"beta": betas.tolist(), "gamma": gammas.tolist(), "alpha_z": az.tolist(),
-           "alpha_x": ax.tolist(), "alpha_z_measured": mz.tolist(), "alpha_x_measured": mx.tolist(),
-           "rms_z_frac": float(np.sqrt(np.mean((az - mz) ** 2)) / scale),
-           "rms_x_frac": float(np.sqrt(np.mean((ax - mx) ** 2)) / scale),
-           "phi": mat.friction / DEG, "wall": sum(v[2] for v in done.values()),
-           "settings": settings}
+    az = [[done[f"{b:.6f},{g:.6f}"][0] for g in gammas] for b in betas]
+    ax = [[done[f"{b:.6f},{g:.6f}"][1] for g in gammas] for b in betas]
+    r = rig_against_table(a.medium, betas, gammas, az, ax)
+    out = {k: (v.tolist() if hasattr(v, "tolist") else v) for k, v in r.items()} | {
+        "phi": mat.friction / DEG, "wall": sum(v[2] for v in done.values()), "settings": settings}
     atomic_write_text(final, json.dumps(out))
     partial.unlink()
     if a.figure:

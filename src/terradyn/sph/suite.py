@@ -112,7 +112,6 @@ def plate_rig(mat, *, quick=False, dx=4e-3, progress=None) -> dict:
     same points (N/cm^3) and the RMS differences as fractions of the largest measured
     |alpha_z| (the issue-17 target: <= 0.2 each)."""
     betas, gammas = rig_grid(quick)
-    table = stress_model(mat.name, "table")
     B, G = np.meshgrid(betas, gammas, indexing="ij")
     az = np.zeros(B.shape)
     ax = np.zeros(B.shape)
@@ -123,9 +122,17 @@ def plate_rig(mat, *, quick=False, dx=4e-3, progress=None) -> dict:
             k += 1
             if progress:
                 progress(k, B.size)
-    mx, mz = table.alpha(B, G)  # StressModel.alpha returns (alpha_x, alpha_z)
-    az, ax = az / N_PER_CM3, ax / N_PER_CM3
+    return rig_against_table(mat.name, betas, gammas, az / N_PER_CM3, ax / N_PER_CM3)
+
+
+def rig_against_table(medium: str, betas, gammas, az, ax) -> dict:
+    """SPH alpha maps ``az``, ``ax`` (N/cm^3, shape (len(betas), len(gammas))) beside Table S5
+    of ``medium`` at the same points, with the RMS differences as fractions of the largest
+    measured |alpha_z|."""
+    B, G = np.meshgrid(betas, gammas, indexing="ij")
+    mx, mz = stress_model(medium, "table").alpha(B, G)  # StressModel.alpha returns (alpha_x, alpha_z)
     mz, mx = np.asarray(mz) / N_PER_CM3, np.asarray(mx) / N_PER_CM3
+    az, ax = np.asarray(az, float), np.asarray(ax, float)
     scale = float(np.abs(mz).max())
     return {"beta": betas, "gamma": gammas, "alpha_z": az, "alpha_x": ax,
             "alpha_z_measured": mz, "alpha_x_measured": mx,
