@@ -123,13 +123,9 @@ def provenance(started: float) -> dict:
             "total_seconds": round(time.perf_counter() - started, 2)}
 
 
-def _made_with(path: Path) -> str:
-    """' (dx 4 mm, Drucker-Prager match bui2008)': the model settings a shipped SPH result file
-    records, so that a report never passes off an older model's numbers as today's."""
-    try:
-        st = json.loads(Path(path).read_text()).get("settings", {})
-    except (OSError, ValueError):
-        return ""
+def _made_with(st: dict) -> str:
+    """' (dx 4 mm, Drucker-Prager match bui2008)': the model settings ``st`` a shipped SPH result
+    file records, so that a report never passes off an older model's numbers as today's."""
     dx = st.get("dx_mm", st["dx_m"] * 1e3 if "dx_m" in st else None)
     match = st.get("dp_match")
     match = ", ".join(match) if isinstance(match, list) else match
@@ -142,10 +138,11 @@ def _sph_inputs(tier: str, out: Path, code: str, say, regenerate: bool) -> tuple
     fresh ``validate`` run (full; cached like a part). Returns (results, label, files, timing)."""
     if tier != "full":
         files = P.sph_result_files()
-        label = ("the shipped result files " + ", ".join(f"benchmarks/results/{f.name}{_made_with(f)}"
-                                                         for f in files)
+        results = P.load_sph_results(files)
+        label = ("the shipped result files " + ", ".join(
+                     f"benchmarks/results/{r['file']}{_made_with(r['settings'])}" for r in results)
                  if files else "no shipped SPH result files found (no source checkout)")
-        return P.load_sph_results(files), label, files, {}
+        return results, label, files, {}
     from ..sph.suite import validate
 
     folder = out / "parts" / "sph-run"
