@@ -511,3 +511,34 @@ def test_sph_sweep_takes_a_users_own_medium_and_the_boundary_model(tmp_path):
     inputs = td.series.inputs_of(ds)
     assert inputs["material"]["density_kg_m3"] == 1600.0
     assert inputs["material"]["friction_deg"] == pytest.approx(33.0)
+
+
+def test_sph_store_made_with_another_calibration_is_not_resumed(tmp_path, monkeypatch):
+    """A store whose finished SPH case ran with other material values than the shipped
+    calibration now gives the same case (same case id) is refused before any work: resuming
+    would mix two models under one id. Same values: the case is skipped as usual."""
+    pytest.importorskip("terradyn.sph")
+    from terradyn.models import sph as msph
+    from terradyn.series import force_series
+    from terradyn.sph import calibration
+
+    spec = sw.parse(SPH_TINY)
+    (c,) = spec.cases
+    st = sw.Store(tmp_path / "sph.sweep")
+    st.claim(spec)
+    st.write_plan(spec)
+
+    def finished(material: dict):
+        ds = force_series("theta", np.linspace(-50, -40, 6), np.zeros(6), np.ones(6), model="sph",
+                          inputs={"medium": "3 mm glass CP", "material": material})
+        st.write_case(c.id, ds)
+
+    made = msph.material("3 mm glass CP", {}).describe()
+    finished(made)
+    s = sw.run(spec, st.path, workers=0)  # nothing to do: same physics
+    assert (s.done, s.skipped) == (0, 1)
+    cal = dict(calibration.shipped()["3 mm glass CP"], friction_deg=made["friction_deg"] + 3.0)
+    monkeypatch.setattr(calibration, "shipped", lambda: {"3 mm glass CP": cal})
+    with pytest.raises(InputError, match="friction_deg") as e:
+        sw.run(spec, st.path, workers=0)
+    assert e.value.field == "store" and c.id in str(e.value)

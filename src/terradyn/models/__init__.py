@@ -143,7 +143,10 @@ class Model:
     """A force model: see the module docstring. ``resolve`` (optional) turns a sweep's
     ``[model]`` table into the canonical parameters that identify a case (defaults filled
     in); without it, the declared defaults are filled in. ``legacy`` are option values to
-    assume for stored cases recorded before the option existed."""
+    assume for stored cases recorded before the option existed. ``physics`` (optional) maps
+    a case's resolved ``[model]`` parameters to the physical inputs that its defaults supply
+    and that may change between versions (SPH: the shipped plate calibration of a named
+    medium); a sweep compares it with what each stored case recorded before resuming."""
 
     name: str
     simulate_fn: Callable
@@ -153,6 +156,7 @@ class Model:
     controls: tuple[str, ...] = ()
     resolve_fn: Callable[[dict], dict] | None = None
     legacy: dict = field(default_factory=dict)
+    physics: Callable[[dict], dict] | None = None
 
     def option(self, name: str) -> Option:
         for o in self.options:

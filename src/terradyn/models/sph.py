@@ -131,6 +131,18 @@ def _resolve(opts: dict) -> dict:
     return out
 
 
+#: The material values a stored case is compared on before a sweep resumes.
+PHYSICS_KEYS = ("density_kg_m3", "youngs_Pa", "friction_deg", "dilatancy_deg", "dp_match")
+
+
+def physics(params: dict) -> dict:
+    """The material a resolved sweep case runs with (defaults filled from the shipped
+    calibration): the values of :data:`PHYSICS_KEYS` of ``GranularMaterial.describe()``."""
+    opts = {k: v for k, v in params.items() if k not in ("name", "medium")}
+    d = material(params["medium"], opts, lambda k: f"model.{k}").describe()
+    return {k: d[k] for k in PHYSICS_KEYS}
+
+
 def _canon(x: float) -> float:
     return float(f"{float(x):.12g}")
 
@@ -138,4 +150,5 @@ def _canon(x: float) -> float:
 MODEL = Model("sph", _simulate, OPTIONS, resolve_fn=_resolve,
               controls=("checkpoint", "progress", "snapshot_times", "on_run"),
               legacy={"boundary": "guard"},  # stores made before the resolved boundary
+              physics=physics,
               description="SPH: elasto-plastic (Drucker-Prager) granular bed with the rigid leg in it.")

@@ -255,6 +255,38 @@ def default_store(spec: SweepSpec) -> Path:
     return Path(f"{spec.name}.sweep")
 
 
+def check_stored_physics(st, spec: SweepSpec, done: set[str]) -> None:
+    """Refuse to resume a store whose finished cases ran with other physical inputs than the
+    ones this version's defaults give the same case (a model's ``physics``, e.g. SPH's
+    shipped plate calibration): the store would mix two models under one case id."""
+    import json
+    import math
+
+    import xarray as xr
+
+    from .. import models
+
+    for c in spec.cases:
+        if c.id not in done:
+            continue
+        model = models.get(c.params["model"]["name"], "sweep.model")
+        if model.physics is None:
+            continue
+        now = model.physics(c.params["model"])
+        with xr.open_dataset(st.case_path(c.id)) as ds:
+            stored = json.loads(ds.attrs.get("input") or "{}").get("material")
+        if not isinstance(stored, dict):
+            continue  # recorded before materials were stored: nothing to compare
+        for k, v in now.items():
+            w = stored.get(k)
+            same = (w == v) if not isinstance(v, float) or not isinstance(w, (int, float)) else \
+                math.isclose(v, w, rel_tol=1e-9, abs_tol=1e-12)
+            if not same:
+                raise InputError("store", f"{st.path} holds case {c.id} made with material {k} = {w!r}; "
+                                          f"this version gives {v!r} for the same case (e.g. a new shipped "
+                                          "calibration): write to a new store, or set the value in the spec")
+
+
 def run(spec: SweepSpec | str | Path, store: str | Path | None = None, *, workers: int | None = None,
         scheduler: str | None = None, retries: int = 0, checkpoint_dir: str | Path | None = None,
         progress: Callable[[int, int, str, bool], None] | None = None) -> Summary:
@@ -285,6 +317,7 @@ def run(spec: SweepSpec | str | Path, store: str | Path | None = None, *, worker
         st.clean_temporaries()
         st.write_plan(spec)
         done = st.done_ids()
+        check_stored_physics(st, spec, done)
         todo = [c for c in spec.cases if c.id not in done]
         total = len(spec.cases)
         ck = str(checkpoint_dir or st.path / "checkpoints")
