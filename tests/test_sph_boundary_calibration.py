@@ -166,3 +166,28 @@ def test_presets_take_a_shipped_plate_calibration_of_the_same_model(monkeypatch)
     # media without a calibration keep their repose angle; Bolton sets its own angle
     assert materials.from_medium("poppy CP").friction == pytest.approx(47 * DEG)
     assert materials.from_medium("poppy CP", dilatancy="bolton").friction == pytest.approx(36 * DEG)
+
+
+def test_dp_match_is_an_option_of_the_model_the_sweep_and_the_cli(tmp_path):
+    """The cone is chosen by name in the API, the sweep and the CLI; the former cone takes a
+    named medium's repose angle (no shipped calibration was made for it); a sweep case id
+    changes only when the non-default cone is asked for; a bad name is one line, exit 2."""
+    import subprocess
+    import sys
+
+    import terradyn.sweep as sw
+    from terradyn.models import sph as msph
+
+    b = msph.material("poppy LP", {"dp_match": "bui2008"})
+    assert b.dp_match == "bui2008" and b.friction == pytest.approx(36 * DEG)
+    assert msph.material("poppy LP", {}).dp_match == "plane-strain"
+    own = msph.material("mine", {"density_kg_m3": 1500.0, "friction_deg": 30.0, "dp_match": "bui2008"})
+    assert own.dp_match == "bui2008"
+    toml = "[sweep]\nmodel = 'sph'\n[leg]\nshape = 'flat'\n[model]\nmedium = 'poppy LP'\nquick = true\n"
+    plain = sw.parse(toml).cases[0]
+    same = sw.parse(toml + "dp_match = 'plane-strain'\n").cases[0]
+    other = sw.parse(toml + "dp_match = 'bui2008'\n").cases[0]
+    assert plain.id == same.id != other.id and other.params["model"]["dp_match"] == "bui2008"
+    r = subprocess.run([sys.executable, "-m", "terradyn", "sph", "plate", "--quick", "--dp-match", "cone"],
+                       capture_output=True, text=True)
+    assert r.returncode == 2 and "dp-match" in r.stderr and len(r.stderr.strip().splitlines()) == 1

@@ -29,17 +29,19 @@ _MEDIUM = typer.Option("3 mm glass CP", help="Medium (Li 2013 Table S1 name), e.
 _DENSITY = typer.Option(None, "--density-kg-m3", help="Your own medium: bulk density, kg/m^3 (needs --friction-deg; calibrate it with 'terradyn sph calibrate').")
 _FRICTION = typer.Option(None, "--friction-deg", help="Friction angle, deg (default: the medium's plate-test calibration shipped with terradyn where there is one, else its angle of repose, Li 2013 Table S1; docs/sph.md).")
 _DILATANCY = typer.Option("none", "--dilatancy", help="Flow rule: none (psi = 0) or bolton (a CP medium dilates until its LP packing: psi = (phi_CP - phi_LP) / 0.8, Bolton 1986; poppy CP, 0.3 mm glass CP).")
+_DP_MATCH = typer.Option("plane-strain", "--dp-match", help="Drucker-Prager cone matched to the friction angle: plane-strain (alpha = sin(phi)/3, mobilises phi in plane strain) or bui2008 (the former cone, mobilises less; a named medium then takes its repose angle unless --friction-deg is given). docs/sph.md.")
 _BOUNDARY = typer.Option("resolved", "--boundary", help="Leg boundary: resolved (sides kept apart, contact at dx/4) or guard (the model before issue 17).")
 
 
 def _material(medium: str, density_kg_m3: float | None, friction_deg: float | None,
-              dilatancy: str = "none"):
+              dilatancy: str = "none", dp_match: str = "plane-strain"):
     """The SPH material of the options (:func:`terradyn.models.sph.material`)."""
     from .. import models
     from ..models.sph import material
 
     return material(medium, models.get("sph").check_options(
-        {"density_kg_m3": density_kg_m3, "friction_deg": friction_deg, "dilatancy": dilatancy}))
+        {"density_kg_m3": density_kg_m3, "friction_deg": friction_deg, "dilatancy": dilatancy,
+         "dp_match": dp_match}))
 
 
 @contextmanager
@@ -123,6 +125,7 @@ def run_cmd(
     density_kg_m3: Optional[float] = _DENSITY,
     friction_deg: Optional[float] = _FRICTION,
     dilatancy: str = _DILATANCY,
+    dp_match: str = _DP_MATCH,
     boundary: str = _BOUNDARY,
     quick: bool = _QUICK,
     dx_mm: Optional[float] = _DX,
@@ -166,7 +169,7 @@ def run_cmd(
     opts = model.check_options(dict(
         quick=quick, dx_mm=dx_mm, cfl=cfl, lowpass_hz=lowpass_hz, backend=Backend(backend).value,
         boundary=boundary, friction_deg=friction_deg, density_kg_m3=density_kg_m3,
-        dilatancy=dilatancy, thickness_cm=positive("thickness-cm", thickness_cm, "cm")))
+        dilatancy=dilatancy, dp_match=dp_match, thickness_cm=positive("thickness-cm", thickness_cm, "cm")))
     sph_model.config(opts)
     sph_model.material(medium, opts)
     if compare_rft and density_kg_m3 is not None:
@@ -245,7 +248,7 @@ def column_cmd(aspect: list[float] = typer.Option([0.5, 1.0, 2.0], help="Aspect 
 @sph_app.command("plate")
 def plate_cmd(medium: str = _MEDIUM, density_kg_m3: Optional[float] = _DENSITY,
               friction_deg: Optional[float] = _FRICTION, dilatancy: str = _DILATANCY,
-              boundary: str = _BOUNDARY, quick: bool = _QUICK, dx_mm: Optional[float] = _DX,
+              dp_match: str = _DP_MATCH, boundary: str = _BOUNDARY, quick: bool = _QUICK, dx_mm: Optional[float] = _DX,
               speed_cm_s: float = typer.Option(1.0, help="Plate speed, cm/s."),
               depth_cm: float = typer.Option(5.0, help="Final depth, cm."),
               plot: Optional[Path] = typer.Option(None, help="Figure: stress on the plate vs depth.")):
@@ -258,7 +261,7 @@ def plate_cmd(medium: str = _MEDIUM, density_kg_m3: Optional[float] = _DENSITY,
     positive("depth-cm", depth_cm, "cm")
     io.check_plot(plot)
     cfg = default_config(quick, dx=_dx(dx_mm), boundary=boundary)
-    r = validation.plate_push(_material(medium, density_kg_m3, friction_deg, dilatancy),
+    r = validation.plate_push(_material(medium, density_kg_m3, friction_deg, dilatancy, dp_match),
                               speed=speed_cm_s * 1e-2, depth=depth_cm * 1e-2, config=cfg)
     typer.echo(json.dumps({"alpha_z_N_per_cm3": r["alpha_z"] / 1e6,
                            "alpha_z_through_origin_N_per_cm3": r["alpha_z_origin"] / 1e6,

@@ -31,6 +31,10 @@ OPTIONS = (
     Option("backend", str, None, choices=("cpu", "gpu", "auto"), help="Kernels (default cpu)."),
     Option("dilatancy", str, None, choices=("none", "bolton"),
            help="Flow rule (default none; bolton: a CP medium dilates until its LP packing, Bolton 1986)."),
+    Option("dp_match", str, None, choices=("plane-strain", "bui2008"),
+           help="Drucker-Prager cone matched to the friction angle (default plane-strain; bui2008: "
+                "the former cone, which mobilises less friction; a named medium then uses its "
+                "repose angle unless friction_deg is given)."),
 )
 _CFG = {"hdx": "hdx", "cfl": "cfl", "av_alpha": "av_alpha", "av_beta": "av_beta",
         "wall_layers": "wall_layers", "noslip": "noslip", "boundary": "boundary",
@@ -71,13 +75,15 @@ def material(medium, opts: dict, field=lambda k: k.replace("_", "-")):
         if opts.get("dilatancy", "none") != "none":
             raise InputError(field("dilatancy"), "'bolton' needs a Li 2013 medium with both packings "
                                                  "(poppy CP, 0.3 mm glass CP), not your own density")
-        return from_properties(medium, opts["density_kg_m3"], opts["friction_deg"])
+        return from_properties(medium, opts["density_kg_m3"], opts["friction_deg"],
+                               dp_match=opts.get("dp_match") or "plane-strain")
     if medium not in media.MEDIA:
         raise InputError(field("medium"), f"unknown medium {medium!r}; allowed: {', '.join(media.MEDIA)} "
                          "(or give a density and friction angle for your own)")
     try:
         return from_medium(medium, friction_deg=opts.get("friction_deg"),
-                           dilatancy=opts.get("dilatancy") or "none")
+                           dilatancy=opts.get("dilatancy") or "none",
+                           dp_match=opts.get("dp_match") or "plane-strain")
     except InputError as e:
         if e.field != "dilatancy":
             raise
@@ -121,6 +127,8 @@ def _resolve(opts: dict) -> dict:
             out[k] = _canon(o[k]) if isinstance(o[k], float) else o[k]
     if o.get("dilatancy", "none") != "none":  # absent = none: case ids of older stores kept
         out["dilatancy"] = o["dilatancy"]
+    if o.get("dp_match", "plane-strain") != "plane-strain":  # absent = the default cone
+        out["dp_match"] = o["dp_match"]
     if cfg.settle_time is not None:
         out["settle_time_s"] = _canon(cfg.settle_time)
     if cfg.lowpass_hz is not None:
