@@ -262,19 +262,20 @@ def check_stored_physics(st, spec: SweepSpec, done: set[str]) -> None:
     import json
     import math
 
-    import xarray as xr
-
     from .. import models
 
+    expected: dict[str, dict | None] = {}  # per distinct [model] table: cases share them
     for c in spec.cases:
         if c.id not in done:
             continue
-        model = models.get(c.params["model"]["name"], "sweep.model")
-        if model.physics is None:
+        key = json.dumps(c.params["model"], sort_keys=True)
+        if key not in expected:
+            model = models.get(c.params["model"]["name"], "sweep.model")
+            expected[key] = model.physics(c.params["model"]) if model.physics is not None else None
+        now = expected[key]
+        if now is None:
             continue
-        now = model.physics(c.params["model"])
-        with xr.open_dataset(st.case_path(c.id)) as ds:
-            stored = json.loads(ds.attrs.get("input") or "{}").get("material")
+        stored = json.loads(st.read_case(c.id).attrs.get("input") or "{}").get("material")
         if not isinstance(stored, dict):
             continue  # recorded before materials were stored: nothing to compare
         for k, v in now.items():
@@ -315,9 +316,9 @@ def run(spec: SweepSpec | str | Path, store: str | Path | None = None, *, worker
     st.lock()
     try:
         st.clean_temporaries()
-        st.write_plan(spec)
         done = st.done_ids()
-        check_stored_physics(st, spec, done)
+        check_stored_physics(st, spec, done)  # before anything is written
+        st.write_plan(spec)
         todo = [c for c in spec.cases if c.id not in done]
         total = len(spec.cases)
         ck = str(checkpoint_dir or st.path / "checkpoints")
