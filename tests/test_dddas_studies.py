@@ -183,3 +183,26 @@ def test_figure_titles_name_the_condition_with_units():
 
     assert _cond_text({"omega_rad_s": 0.7}) == "omega = 0.7 rad/s"
     assert _cond_text({"hip_height_cm": 2.5, "length_cm": 29.0}) == "hip height = 2.5 cm, length = 29 cm"
+
+
+def test_speed_study_scores_every_held_out_case_and_the_filter_reaches_the_exact_posterior(tmp_path):
+    s = studies.speed_study(tmp_path, data={"flat": omega_stack()}, legs=("flat",), seeds=(0, 1), particles=2000)
+    leg = s["legs"]["flat"]
+    assert leg["held_out_cases"] == 10 and leg["held_out"]["omega"] == pytest.approx(np.arange(0.2, 1.15, 0.1))
+    for sc in ("assimilation", "forecast"):
+        for m in ("prior", "pf", "pf_move", "exact"):
+            for c in ("Fx", "Fz"):
+                v = leg["mse_N2"][sc][m][c]
+                assert len(v) == 20 and np.all(np.isfinite(v))  # 10 cases x 2 seeds
+                assert leg["mse_mean_N2"][sc][m][c] == pytest.approx(np.mean(v))
+        for m in ("pf", "pf_move", "exact"):
+            for c in ("Fx", "Fz"):
+                assert leg["mean_over_prior"][sc][m][c] == pytest.approx(
+                    leg["mse_mean_N2"][sc][m][c] / leg["mse_mean_N2"][sc]["prior"][c])
+            assert leg["never_worse_than_prior"][sc][m] == all(leg["mean_over_prior"][sc][m][c] <= 1 for c in ("Fx", "Fz"))
+    # resample-move samples the exact (linear-Gaussian) posterior: its mean MSE is the exact one's
+    q = leg["mean_over_prior"]["assimilation"]
+    for c in ("Fx", "Fz"):
+        assert q["pf_move"][c] == pytest.approx(q["exact"][c], rel=0.1)
+    assert json.loads((tmp_path / "speed_study.json").read_text())["study"] == "dddas-speed"
+    assert (tmp_path / "speed_study.png").stat().st_size > 10_000

@@ -45,7 +45,7 @@ def test_every_claim_has_a_verdict_computed_from_its_numbers(quick_report):
     assert [p["name"] for p in disk["parts"]] == list(PART_NAMES)
     ids = [c["id"] for p in disk["parts"] for c in p["cards"]]
     for want in ("interp-holdout", "legs-flat", "legs-c", "legs-reverse-c", "legs-closed-forms", "rft-vs-sph",
-                 "rft-sph-experiment", "rft-vs-s12", "foot-lengths", "foot-trials", "dddas-ranks", "dddas-cv-flat", "dddas-pf-flat",
+                 "rft-sph-experiment", "rft-vs-s12", "foot-lengths", "foot-trials", "dddas-ranks", "dddas-cv-flat", "dddas-pf-flat", "dddas-speed",
                  "dddas-foot", "sph-bed", "sph-plate", "sph-rig", "sph-legs"):
         assert want in ids
     assert len(disk["claims"]) == disk["summary"]["n_claims"] > 50

@@ -427,6 +427,7 @@ def test_plate_drag_form_against_the_shipped_sph():
         assert r["omega_high_rad_s"] > 5 * r["omega_low_rad_s"]
         assert 0 <= r["dynamic_rft_change_frac"] < 0.01
         assert r["sph_peak_low_N"] > 1
+        assert 0 < r["sph_trend_se_frac_per_rad_s"] < 0.5 and abs(r["sph_trend_frac_per_rad_s"]) < 1
     assert 0.5 < res["plate_crossover_speed_m_s"] < 5
 
 

@@ -14,7 +14,7 @@ from . import sub_app
 
 Method = Enum("Method", {"pf": "pf", "exact": "exact"}, type=str)
 Resampler = Enum("Resampler", {"systematic": "systematic", "multinomial": "multinomial"}, type=str)
-Study = Enum("Study", {"legs": "legs", "foot": "foot"}, type=str)
+Study = Enum("Study", {"legs": "legs", "foot": "foot", "speed": "speed"}, type=str)
 
 
 def _err(msg):
@@ -218,9 +218,19 @@ def register(app: typer.Typer) -> None:
                  f"ranks {r['ranks']}; LOO CV mean MSE Fx/Fz {cv['Fx']:.3f}/{cv['Fz']:.3f} N^2 "
                  f"(thesis {r['reported_cv_mse_N2']:g}); PF posterior MSE Fx/Fz {pf['Fx']:.3f}/{pf['Fz']:.3f} N^2"))
 
+    def _speed_summary(s):
+        """Per leg, each filter's mean MSE over the prior's (assimilation score) on stderr."""
+        for leg, r in s["legs"].items():
+            q = r["mean_over_prior"]["assimilation"]
+            _err(f"{leg}: {r['data_label']}; {r['held_out_cases']} held-out cases x {len(s['seeds'])} seeds; "
+                 "mean posterior MSE / prior MSE, Fx/Fz: " + "; ".join(
+                     f"{m} {q[m]['Fx']:.3f}/{q[m]['Fz']:.3f}" for m in ("pf", "pf_move", "exact")))
+
     @dd.command()
     def study(
-        which: Study = typer.Argument(..., help="legs: three legs across ten conditions; foot: human-sized foot."),
+        which: Study = typer.Argument(..., help="legs: three legs across ten conditions; foot: human-sized foot; "
+                                      "speed: the thesis's speed study over every held-out case of the legs' data, "
+                                      "noise seeds SEED and SEED + 1 (speed_study.json, speed_study.png)."),
         out: Path = typer.Option(Path("results/dddas"), "--out", "-o", help="Output folder."),
         data: List[str] = typer.Option([], "--data", help="legs: FILE stacking all legs with a 'shape' coordinate, LEG=FILE (a stack for one leg), or a keyword: 'sph' (the shipped SPH training set datasets/sph_legs_speeds.nc), 'rft' (RFT-generated stand-in, hip height varies); also LEG=sph|rft. Default: the shipped SPH set, or RFT-generated data with a warning where it is not found (set TERRADYN_DATASETS=DIR)."),
         trial: Optional[Path] = typer.Option(None, help="foot: trial CSV [default: a synthetic trial]."),
@@ -236,8 +246,8 @@ def register(app: typer.Typer) -> None:
         io.check_writable(out, "out", directory=True)
         integer("particles", particles, 1)
         check_memory("particles", particles * 8.0 * 64 * 4, f"{particles:,} particles")
-        if which.value == "legs" and trial is not None:
-            ignored("trial", "has no effect with the legs study")
+        if which.value in ("legs", "speed") and trial is not None:
+            ignored("trial", f"has no effect with the {which.value} study")
         if which.value == "foot" and data:
             ignored("data", "has no effect with the foot study")
         io.check_input(trial, "trial")
@@ -245,7 +255,7 @@ def register(app: typer.Typer) -> None:
             from ..experiment import read_trial
 
             read_trial(trial)  # a bad trial: an error before the study's work
-        if which.value == "legs":
+        if which.value in ("legs", "speed"):
             from ..errors import InputError
 
             d = {}
@@ -259,8 +269,14 @@ def register(app: typer.Typer) -> None:
                     io.check_input(v, "data")
                 d[k] = v
             with renamed(file="data"):
-                s = studies.legs_study(out, d, particles=particles, seed=seed, progress=_err)
-            _legs_summary(s)
+                if which.value == "legs":
+                    s = studies.legs_study(out, d, particles=particles, seed=seed, progress=_err)
+                else:
+                    s = studies.speed_study(out, d, seeds=(seed, seed + 1), particles=particles, progress=_err)
+            if which.value == "legs":
+                _legs_summary(s)
+            else:
+                _speed_summary(s)
         else:
             s = studies.foot_study(out, trial=trial, particles=particles, seed=seed, progress=_err)
         sys.stdout.write(json.dumps(s, indent=2, default=float) + "\n")

@@ -222,6 +222,51 @@ def forecast_mse(ds: xr.Dataset, path, title: str = "") -> Path:
     return path
 
 
+_SPEED_STYLE = {"pf": ("particle filter, jitter (thesis setting)", "C0", "s"),
+                "pf_move": ("particle filter + resample-move", "C3", "o"),
+                "exact": ("exact posterior (linear model)", "C2", "^")}
+
+
+def speed_study(result: dict, path, score: str = "assimilation", title: str = "") -> Path:
+    """The thesis's speed study (:func:`terradyn.dddas.studies.speed_study`): posterior MSE over
+    the prior's (the surrogate alone) for every held-out condition, mean over the noise seeds,
+    one panel per leg and component, one marker per estimator; the dashed line at 1 is the prior,
+    the legend gives each estimator's ratio of the mean MSEs (the target: at most 1)."""
+    plt = _plt()
+    legs = list(result["legs"])
+    comps = ("Fx", "Fz")
+    nseed = max(len(result.get("seeds", [0])), 1)
+    fig, axes = plt.subplots(len(comps), len(legs), figsize=(3.7 * len(legs), 2.8 * len(comps)),
+                             constrained_layout=True, squeeze=False)
+    for j, leg in enumerate(legs):
+        d = result["legs"][leg]
+        name = d["inputs"][0]
+        x = np.asarray(d["held_out"][name], float)
+        for i, c in enumerate(comps):
+            ax = axes[i, j]
+            prior = np.asarray(d["mse_N2"][score]["prior"][c], float).reshape(len(x), nseed).mean(1)
+            means = []
+            for m, (label, color, marker) in _SPEED_STYLE.items():
+                y = np.asarray(d["mse_N2"][score][m][c], float).reshape(len(x), nseed).mean(1)
+                means.append(d["mse_mean_N2"][score][m][c] / d["mse_mean_N2"][score]["prior"][c])
+                ax.plot(x, y / prior, ls="none", marker=marker, ms=4, color=color, label=label)
+            ax.axhline(1.0, color="0.5", ls="--", lw=1, label="prior (surrogate alone)")
+            ax.set_title(f"{leg}: {c}; ratio of the means " + " / ".join(f"{r:.2f}" for r in means), fontsize=8)
+            ax.set_xlabel(f"held-out {condition_label(name)}")
+            ax.set_ylabel("posterior MSE / prior MSE")
+            ax.grid(True, alpha=0.3)
+    h, lab = axes[0, 0].get_legend_handles_labels()
+    fig.legend(h, lab, loc="outside lower center", ncol=4, fontsize=7,
+               title="markers: mean over the noise seeds; title: ratios of the mean MSEs in legend order", title_fontsize=7)
+    fig.suptitle(title or f"Speed study ({score}): every held-out case, {nseed} noise seed(s), "
+                 f"{100 * float(result.get('noise_fraction', 0)):g} % noise, N = {result.get('particles')}",
+                 fontsize=10)
+    path = Path(path)
+    atomic_save(path, lambda t: fig.savefig(t, dpi=150))
+    plt.close(fig)
+    return path
+
+
 def identification(ds: xr.Dataset, path, title: str = "") -> Path:
     """Left: fraction of trials whose most probable medium is the true one, against the stroke
     fraction observed, per leg. Right: one trial per leg, the posterior mean of zeta with its

@@ -589,8 +589,12 @@ def speed_study(out: str | Path | None = None, data=None, legs=LEGS, seeds=(0, 1
         mean = {sc: {m: {c: float(np.mean(v)) for c, v in d.items()} for m, d in s.items()} for sc, s in mse.items()}
         never_worse = {sc: {m: all(mean[sc][m][c] <= mean[sc]["prior"][c] for c in comps)
                             for m in ("pf", "pf_move", "exact")} for sc in mse}
+        held = {nm: [float(v) for v in np.atleast_1d(ds[nm].values)] for nm in inputs}
+        ratio = {sc: {m: {c: mean[sc][m][c] / mean[sc]["prior"][c] for c in comps} for m in ("pf", "pf_move", "exact")}
+                 for sc in mse}
         result["legs"][shape] = {"source": rec["source"], "data_label": rec["label"], "inputs": inputs,
-                                 "held_out_cases": int(n), "mse_mean_N2": mean, "never_worse_than_prior": never_worse,
+                                 "held_out_cases": int(n), "held_out": held, "mse_mean_N2": mean,
+                                 "mean_over_prior": ratio, "never_worse_than_prior": never_worse,
                                  "mse_N2": mse, "seconds": time.perf_counter() - t0}
         _say(progress, f"{shape}: " + "; ".join(
             f"{sc} MSE Fx/Fz prior {mean[sc]['prior']['Fx']:.4f}/{mean[sc]['prior']['Fz']:.4f}, pf "
@@ -602,4 +606,5 @@ def speed_study(out: str | Path | None = None, data=None, legs=LEGS, seeds=(0, 1
 
         Path(out).mkdir(parents=True, exist_ok=True)
         atomic_write_text(Path(out) / "speed_study.json", json.dumps(result, indent=2))
+        plots.speed_study(result, Path(out) / "speed_study.png")
     return result

@@ -140,11 +140,20 @@ def plate_drag_vs_sph(lam: float = 1.1) -> dict:
             traj = Rotation(float(w), 2 * CM, -135 * DEG, 135 * DEG, 271).trajectory()
             fx, fz, _ = rft.engine.net_forces(make_leg(shape), traj, fit, dynamic=(lam, rho))
             pred.append(np.hypot(fx, fz).max())
+        # least-squares trend of the peak over all speeds (and its standard error): the
+        # low/high pair alone is two noisy runs
+        A = np.vstack([np.ones_like(om), om]).T
+        coef, res, *_ = np.linalg.lstsq(A, peak, rcond=None)
+        dof = max(len(om) - 2, 1)
+        s2 = float(res[0]) / dof if len(res) else 0.0
+        se = float(np.sqrt(s2 * np.linalg.inv(A.T @ A)[1, 1]))
         out["legs"][shape] = {
             "omega_low_rad_s": float(om[lo]), "omega_high_rad_s": float(om[hi]),
             "sph_peak_low_N": float(peak[lo]), "sph_peak_high_N": float(peak[hi]),
             "sph_change_frac": float(peak[hi] / peak[lo] - 1),
             "sph_peak_cv_over_speeds": float(peak.std() / peak.mean()),
+            "sph_trend_frac_per_rad_s": float(coef[1] / peak.mean()),
+            "sph_trend_se_frac_per_rad_s": se / float(peak.mean()),
             "dynamic_rft_change_frac": float(pred[1] / pred[0] - 1)}
     A = 3.81 * CM * 2.54 * CM
     v = 0.02
