@@ -3,7 +3,7 @@ and the three legs' peaks in the rotating-leg test (Li 2013 Fig. S5) at several 
 spacings, with the change between successive resolutions.
 
     python benchmarks/sph_convergence.py [--medium "poppy LP"] [--dx-mm 2 2.5 3 4]
-        [--youngs-mpa 0.25] [--omega 1.1] [--realizations 2] [--threads 1]
+        [--youngs-mpa 0.25] [--omega 1.1] [--realizations 2] (plate runs; legs: the mean curve of that many runs) [--threads 1]
         [--scenes plate flat c reverse-c] [--dp-match plane-strain|bui2008]
 (the medium's preset material: its shipped plate calibration where there is one)
 
@@ -25,12 +25,14 @@ OUT = Path(__file__).parent / "results" / "sph_convergence.json"
 LEGS = ("flat", "c", "reverse-c")
 
 
-def _changes(runs: dict, medium: str, e: float, match: str, phi: float) -> dict:
+def _changes(runs: dict, medium: str, e: float, match: str, phi: float, omega: float = 1.1, real: int = 1) -> dict:
     """Relative change of every quantity between successive resolutions (coarse -> fine) of
-    one material (medium, stiffness, Drucker-Prager match, friction angle)."""
+    one material (medium, stiffness, Drucker-Prager match, friction angle), one leg speed and
+    one number of leg realizations (the plate's runs join every set)."""
     by_dx: dict[float, dict] = {}
     for r in runs.values():
-        if (r["medium"], r["youngs_MPa"], r["dp_match"], r["friction_deg"]) == (medium, e, match, phi):
+        if (r["medium"], r["youngs_MPa"], r["dp_match"], r["friction_deg"]) == (medium, e, match, phi) \
+                and r.get("omega", 1.1) == omega and r.get("realizations", 1) in ((1, real) if r["scene"] == "plate" else (real,)):
             q = by_dx.setdefault(r["dx_mm"], {})
             if r["scene"] == "plate":
                 q["plate alpha_z (through origin)"] = r["alpha_z_origin_N_cm3"]
@@ -57,10 +59,12 @@ def _merge_and_write(key: str, val: dict) -> None:
             "machine": f"{platform.machine()}, {os.cpu_count()} cores (shared with other work)",
             "command": "python benchmarks/sph_convergence.py", "runs": {}}
         res["runs"][key] = val
-        sets = sorted({(r["medium"], r["youngs_MPa"], r["dp_match"], r["friction_deg"])
-                       for r in res["runs"].values()})
-        res["changes"] = {f"{m}, E {e:g} MPa, {dm}, phi {phi:g} deg": _changes(res["runs"], m, e, dm, phi)
-                          for m, e, dm, phi in sets}
+        sets = sorted({(r["medium"], r["youngs_MPa"], r["dp_match"], r["friction_deg"], r.get("omega", 1.1),
+                        1 if r["scene"] == "plate" else r.get("realizations", 1)) for r in res["runs"].values()})
+        res["changes"] = {
+            f"{m}, E {e:g} MPa, {dm}, phi {phi:g} deg" + (f", omega {w:g}" if w != 1.1 else "")
+            + (f", legs: mean of {k} runs" if k > 1 else ""): _changes(res["runs"], m, e, dm, phi, w, k)
+            for m, e, dm, phi, w, k in sets}
         atomic_write_text(OUT, json.dumps(res, indent=1))
 
 
@@ -94,6 +98,8 @@ def main() -> None:
             key = f"{scene}|{a.medium}|{a.youngs_mpa:g}MPa|{dx:g}mm|omega{a.omega:g}|{a.dp_match}"
             if abs(mat.friction / DEG - MEDIA[a.medium].repose_angle / DEG) > 1e-9:
                 key += f"|phi{mat.friction / DEG:.2f}"  # a friction angle other than the repose angle
+            if scene != "plate" and a.realizations > 1:
+                key += f"|r{a.realizations}"  # legs: the mean curve of several runs (older keys: one run)
             if key in done:
                 continue
             t0 = time.perf_counter()
@@ -108,9 +114,11 @@ def main() -> None:
                               "intercept_kPa": round(r["intercept_Pa"] / 1e3, 3),
                               "measured_N_cm3": alpha_z_plate_measured(a.medium) / N_PER_CM3}
             else:
-                r = leg_vs_measured(scene, mat, omega=a.omega, config=cfg)
-                val = base | {c: {k: round(v, 4) for k, v in r[c].items() if isinstance(v, float)}
-                              for c in ("Fx", "Fz")}
+                r = leg_vs_measured(scene, mat, omega=a.omega, config=cfg, realizations=a.realizations)
+                val = base | {"realizations": r["realizations"]} | {
+                    c: {k: (round(v, 4) if isinstance(v, float) else [round(x, 4) for x in v])
+                        for k, v in r[c].items() if isinstance(v, float) or k == "peaks_runs"}
+                    for c in ("Fx", "Fz")}
             val["wall_s"] = round(time.perf_counter() - t0, 1)
             _merge_and_write(key, val)
             print(key, json.dumps(val), flush=True)

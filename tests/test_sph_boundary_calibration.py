@@ -191,3 +191,44 @@ def test_dp_match_is_an_option_of_the_model_the_sweep_and_the_cli(tmp_path):
     r = subprocess.run([sys.executable, "-m", "terradyn", "sph", "plate", "--quick", "--dp-match", "cone"],
                        capture_output=True, text=True)
     assert r.returncode == 2 and "dp-match" in r.stderr and len(r.stderr.strip().splitlines()) == 1
+
+
+def test_leg_realizations_average_the_curves_of_runs_started_10_nm_apart(monkeypatch):
+    """``realizations`` runs the leg with the hip j x 10 nm higher and compares the mean curve
+    (the measured curves are trial means); each run's peak and the standard error are kept.
+    The SPH run itself is replaced here by RFT plus a run-dependent offset (the plumbing, not
+    the physics: a 2.5 mm leg run takes minutes)."""
+    import terradyn as td
+    from terradyn.sph import api
+
+    hips = []
+
+    def fake(leg, motion, mat, config=None, progress=None):
+        hips.append(motion.hip_height)
+        ds = td.rft.simulate(leg, motion, td.stress_model(mat.name, "table", interp="linear"))
+        j = len(hips) - 1
+        ds["Fz"] = ds["Fz"] * (1.0 + 0.1 * j)
+        return ds
+
+    monkeypatch.setattr(api, "simulate", fake)
+    one = suite.leg_vs_measured("flat", "poppy LP", dx=4e-3)
+    hips.clear()
+    three = suite.leg_vs_measured("flat", "poppy LP", dx=4e-3, realizations=3)
+    assert np.allclose(np.diff(hips), 1e-8, rtol=1e-6, atol=0) and hips[0] == pytest.approx(0.02)
+    p = three["Fz"]["peaks_runs"]
+    assert p == pytest.approx([one["Fz"]["peak_sph"] * f for f in (1.0, 1.1, 1.2)], rel=1e-5)  # (20 nm of hip)
+    assert three["Fz"]["peak_sph"] == pytest.approx(np.mean(p), rel=1e-5)  # the mean curve of scaled copies
+    assert three["Fz"]["peak_sem"] == pytest.approx(np.std(p, ddof=1) / np.sqrt(3))
+    assert three["Fx"]["peak_sem"] == pytest.approx(0.0, abs=1e-4) and math.isnan(one["Fz"]["peak_sem"])
+    assert three["realizations"] == 3 and three["sph"].attrs["realizations"] == 3
+    with pytest.raises(InputError, match="realizations"):
+        suite.leg_vs_measured("flat", "poppy LP", realizations=0)
+    with pytest.raises(InputError, match="realizations"):
+        suite.validate(scenes=("legs",), realizations=21)
+
+
+def test_validate_cli_refuses_bad_realizations(tmp_path, capsys):
+    from terradyn.cli import main
+
+    rc = main(["sph", "validate", "--scene", "legs", "--realizations", "0", "--out", str(tmp_path / "v")])
+    assert rc == 2 and "realizations" in capsys.readouterr().err and not (tmp_path / "v").exists()

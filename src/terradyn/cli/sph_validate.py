@@ -102,6 +102,7 @@ def validate_cmd(
     medium: list[str] = typer.Option([], "--medium", help="Media for plate, rig and legs (repeat; default: the five of Li 2013, legs only where Fig. S5 has curves)."),
     dx_mm: Optional[float] = typer.Option(None, "--dx-mm", help="Particle spacing, mm (default: 2.5, the production resolution; --quick 4)."),
     omega: float = typer.Option(1.1, help="Angular speed of the leg tests, rad/s (1.1 is 5.5 x fewer steps than 0.2; the rate check is in docs/sph.md)."),
+    realizations: int = typer.Option(1, help="Runs per leg test (1..20), averaged: the measured curves are means over trials; each run's peak and the standard error go into validation.json."),
 ):
     """Run the SPH validation scenes and compare with measurements: validation.json (quantity,
     ours, reference, source, difference, verdict) and figures in OUT.
@@ -116,12 +117,18 @@ def validate_cmd(
         choice("scene", s, list(suite.SCENES))
     dx = None if dx_mm is None else in_range("dx-mm", dx_mm, 1.0, 10.0, "mm") * 1e-3
     in_range("omega", omega, 0.01, 10.0, "rad/s")
+    if not 1 <= realizations <= 20:
+        raise InputError("realizations", f"must be in 1..20 runs per leg test, got {realizations}")
+    if realizations > 1 and scene and "legs" not in scene:
+        from ..models import ignored
+
+        ignored("realizations", "applies to the leg tests only, and --scene does not include legs")
     if out.exists() and not out.is_dir():
         raise InputError("out", f"{out} exists and is not a directory")
     out.mkdir(parents=True, exist_ok=True)
     res = suite.validate(quick=quick, scenes=tuple(scene) or suite.SCENES, media=medium or None,
                          dx=dx, omega=omega, progress=lambda m: err(f"[dim]{m}[/]"),
-                         figures_dir=out)
+                         figures_dir=out, realizations=realizations)
     res["summary"] = suite.summary(res)
     _atomic_json(out / "validation.json", res)
     for c in res["checks"]:

@@ -16,7 +16,7 @@ from importlib import resources
 
 import numpy as np
 
-from ..errors import choice
+from ..errors import InputError, choice, integer
 from ..geometry import ArcLeg, make_leg
 from ..media import LI2013, MEDIA, stress_model
 from ..motion import PlanarMotion, Rotation
@@ -141,10 +141,17 @@ def rig_against_table(medium: str, betas, gammas, az, ax) -> dict:
 
 
 # ---------------------------------------------------------------------------------- legs
-def leg_vs_measured(name: str, medium, *, omega=1.1, dx=4e-3, config=None, progress=None):
+def leg_vs_measured(name: str, medium, *, omega=1.1, dx=4e-3, config=None, progress=None, realizations: int = 1):
     """One leg in the rotating-leg test (hip 2 cm, -135..135 deg) in SPH, with RFT (the
     medium's measured grid, linear) and Li 2013 Fig. S5's measured curve: peaks (N) and RMS
-    differences from the measurement over the measured angles (N)."""
+    differences from the measurement over the measured angles (N).
+
+    ``realizations`` k > 1 runs the leg k times, run j with the hip j x 10 nm higher (a
+    physically nil change that gives another realization of the chaotic granular flow, as in
+    the plate test); the SPH curve is then the mean of the runs (the measured curves are means
+    over trials, so the peak of the mean curve is what compares), and ``peaks_runs`` and
+    ``peak_sem`` give each run's peak and the standard error of the mean curve's peak from the
+    runs' scatter."""
     from ..rft import simulate as rft_simulate
     from .api import simulate
     from .materials import material
@@ -152,35 +159,54 @@ def leg_vs_measured(name: str, medium, *, omega=1.1, dx=4e-3, config=None, progr
 
     mat = material(medium)
     exp = measured_legs()
-    mot = Rotation(omega=omega, hip_height=2 * CM, theta_start=-135 * DEG,
-                   theta_end=135 * DEG, n_theta=271)
+    n_real = integer("realizations", realizations, 1)
+    if n_real > 20:
+        raise InputError("realizations", f"must be <= 20, got {realizations}")
+
+    def motion(j=0):
+        return Rotation(omega=omega, hip_height=2 * CM + 1e-8 * j, theta_start=-135 * DEG,
+                        theta_end=135 * DEG, n_theta=271)
+
     leg = make_leg(name)
-    sph = simulate(leg, mot, mat, config=config or SPHConfig(dx=dx), progress=progress)
-    rft = rft_simulate(leg, mot, stress_model(mat.name, "table", interp="linear"))
-    out = {"sph": sph, "rft": rft}
+    runs = [simulate(leg, motion(j), mat, config=config or SPHConfig(dx=dx), progress=progress)
+            for j in range(n_real)]
+    sph = runs[0].copy()
+    for comp in ("Fx", "Fz", "torque"):
+        if comp in sph:
+            sph[comp] = (sph[comp].dims, np.mean([r[comp].values for r in runs], axis=0))
+    if n_real > 1:
+        sph.attrs["realizations"] = n_real
+    rft = rft_simulate(leg, motion(), stress_model(mat.name, "table", interp="linear"))
+    out = {"sph": sph, "rft": rft, "realizations": n_real}
     for comp in ("Fx", "Fz"):
         e = exp[(exp.medium == mat.name) & (exp.leg == name) & (exp.force == comp)]
         th, y = e.theta_deg.values, e.force_N.values
         s = np.interp(th, sph.theta.values, sph[comp].values)
         r = np.interp(th, rft.theta.values, rft[comp].values)
+        peaks = [float(x[comp].values.max()) for x in runs]
         out[comp] = {"peak_sph": float(sph[comp].values.max()), "peak_measured": float(y.max()),
                      "peak_rft": float(rft[comp].values.max()),
                      "rms_sph": float(np.sqrt(np.mean((s - y) ** 2))),
                      "rms_rft": float(np.sqrt(np.mean((r - y) ** 2))),
+                     "peaks_runs": peaks,
+                     "peak_sem": float(np.std(peaks, ddof=1) / np.sqrt(n_real)) if n_real > 1 else float("nan"),
                      "theta": th, "measured": y}
     return out
 
 
 # ------------------------------------------------------------------------------- the run
 def validate(*, quick=False, scenes=SCENES, media=None, dx=None, omega=1.1, progress=None,
-             figures_dir=None) -> dict:
+             figures_dir=None, realizations: int = 1) -> dict:
     """Run the scenes; returns {"checks": [Check.describe()...], "details": {...}}. ``quick``:
-    4 mm particles, columns a = 1 only, the rig's 3 x 5 subset, the flat leg only."""
+    4 mm particles, columns a = 1 only, the rig's 3 x 5 subset, the flat leg only.
+    ``realizations``: runs per leg test, averaged (:func:`leg_vs_measured`)."""
     from . import plots, validation
     from .materials import MATERIALS, material
 
     for s in scenes:
         choice("scene", s, list(SCENES))
+    if not 1 <= integer("realizations", realizations, 1) <= 20:
+        raise InputError("realizations", f"must be in 1..20, got {realizations}")
     from .api import FULL_DX
 
     dx = dx or (4e-3 if quick else FULL_DX)  # full: the production resolution (docs/sph.md, Convergence)
@@ -257,7 +283,11 @@ def validate(*, quick=False, scenes=SCENES, media=None, dx=None, omega=1.1, prog
         for m in [x for x in media if x in LEG_MEDIA]:
             for leg in (("flat",) if quick else LEGS):
                 say(f"{leg} leg, {m}")
-                r = leg_vs_measured(leg, m, omega=omega, dx=dx)
+                r = leg_vs_measured(leg, m, omega=omega, dx=dx, realizations=realizations)
+                details.setdefault("legs", {})[f"{leg} leg, {m}"] = {
+                    "realizations": r["realizations"],
+                    **{f"{c}_peaks_runs_N": r[c]["peaks_runs"] for c in ("Fz", "Fx")},
+                    **{f"{c}_peak_sem_N": r[c]["peak_sem"] for c in ("Fz", "Fx") if r["realizations"] > 1}}
                 for comp, what in (("Fz", "lift"), ("Fx", "thrust")):
                     c = r[comp]
                     checks.append(Check("legs", f"peak {what}, {leg} leg, {m}", c["peak_sph"],
@@ -273,6 +303,7 @@ def validate(*, quick=False, scenes=SCENES, media=None, dx=None, omega=1.1, prog
                                           title=f"{leg} leg, {m}, omega = {omega:g} rad/s")
     return {"checks": [c.describe() for c in checks], "details": details,
             "settings": {"quick": quick, "dx_m": dx, "omega_rad_s": omega, "scenes": list(scenes),
+                         "leg_realizations": int(realizations),
                          "media": media, "dp_match": sorted({material(m).dp_match for m in media})}}
 
 
