@@ -279,6 +279,8 @@ DDDAS = [
     (["study", "speed", "--data", "fem", "-o", "o"], 2, "data"),
     (["study", "speed", "--particles", "0", "-o", "o"], 2, "particles"),
     (["study", "speed", "-o", "afile"], 2, "out"),
+    (["study", "speed", "--leg", "spoon", "-o", "o"], 2, "leg"),
+    (["study", "legs", "--leg", "flat", "--leg", "flat", "-o", "o"], 2, "leg"),
     (["study", "foot", "--trial", "missing.csv", "-o", "o"], 2, "trial"),
     (["study", "foot", "--trial", "binary.csv", "-o", "o"], 2, "trial"),
     (["study", "bogus"], 2, "'which'"),

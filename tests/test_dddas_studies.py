@@ -206,3 +206,17 @@ def test_speed_study_scores_every_held_out_case_and_the_filter_reaches_the_exact
         assert q["pf_move"][c] == pytest.approx(q["exact"][c], rel=0.1)
     assert json.loads((tmp_path / "speed_study.json").read_text())["study"] == "dddas-speed"
     assert (tmp_path / "speed_study.png").stat().st_size > 10_000
+
+
+def test_speed_study_cli_for_one_leg_writes_json_figure_and_summary(tmp_path, capsys):
+    from terradyn.cli import main
+
+    td.io.write(omega_stack(), tmp_path / "flat.nc")
+    rc = main(["dddas", "study", "speed", "--leg", "flat", "--data", f"flat={tmp_path / 'flat.nc'}",
+               "--particles", "300", "-o", str(tmp_path / "out")])
+    io = capsys.readouterr()
+    assert rc == 0
+    s = json.loads(io.out)
+    assert list(s["legs"]) == ["flat"] and s["seeds"] == [0, 1] and s["particles"] == 300
+    assert "flat:" in io.err and "mean posterior MSE / prior MSE" in io.err
+    assert (tmp_path / "out" / "speed_study.json").is_file() and (tmp_path / "out" / "speed_study.png").is_file()

@@ -234,6 +234,7 @@ def register(app: typer.Typer) -> None:
         out: Path = typer.Option(Path("results/dddas"), "--out", "-o", help="Output folder."),
         data: List[str] = typer.Option([], "--data", help="legs: FILE stacking all legs with a 'shape' coordinate, LEG=FILE (a stack for one leg), or a keyword: 'sph' (the shipped SPH training set datasets/sph_legs_speeds.nc), 'rft' (RFT-generated stand-in, hip height varies); also LEG=sph|rft. Default: the shipped SPH set, or RFT-generated data with a warning where it is not found (set TERRADYN_DATASETS=DIR)."),
         trial: Optional[Path] = typer.Option(None, help="foot: trial CSV [default: a synthetic trial]."),
+        leg: List[str] = typer.Option([], "--leg", help="legs, speed: the legs to study (repeat; flat, c, reverse-c) [default: all three]."),
         particles: int = typer.Option(5000, help="Number of particles."),
         seed: int = typer.Option(0, help="Random seed."),
     ):
@@ -250,6 +251,15 @@ def register(app: typer.Typer) -> None:
             ignored("trial", f"has no effect with the {which.value} study")
         if which.value == "foot" and data:
             ignored("data", "has no effect with the foot study")
+        if which.value == "foot" and leg:
+            ignored("leg", "has no effect with the foot study")
+        from ..errors import choice
+
+        legs = tuple(dict.fromkeys(choice("leg", x, list(studies.LEGS)) for x in leg)) or studies.LEGS
+        if len(legs) != len(leg) and leg:
+            from ..errors import InputError
+
+            raise InputError("leg", f"each leg once, got {list(leg)}")
         io.check_input(trial, "trial")
         if trial is not None and which.value == "foot":
             from ..experiment import read_trial
@@ -267,12 +277,15 @@ def register(app: typer.Typer) -> None:
                     if Path(v).suffix.lower() not in (".nc", ".zarr", ".csv"):
                         raise InputError("data", f"{item!r}: not 'sph', 'rft' or a .nc/.zarr/.csv file")
                     io.check_input(v, "data")
+                if k != "all" and k not in legs:
+                    ignored("data", f"{item!r}: the {k} leg is not among --leg {', '.join(legs)}")
                 d[k] = v
             with renamed(file="data"):
                 if which.value == "legs":
-                    s = studies.legs_study(out, d, particles=particles, seed=seed, progress=_err)
+                    s = studies.legs_study(out, d, legs=legs, particles=particles, seed=seed, progress=_err)
                 else:
-                    s = studies.speed_study(out, d, seeds=(seed, seed + 1), particles=particles, progress=_err)
+                    s = studies.speed_study(out, d, legs=legs, seeds=(seed, seed + 1), particles=particles,
+                                            progress=_err)
             if which.value == "legs":
                 _legs_summary(s)
             else:
