@@ -78,7 +78,7 @@ def test_study_legs_data_keywords(tmp_path, capsys, monkeypatch):
 
     def tiny(out, data, **kw):  # one leg, four hip heights: seconds
         seen.append(data)
-        return real(out, data, legs=("flat",), **{**kw, "particles": 200})
+        return real(out, data, **{**kw, "legs": ("flat",), "particles": 200})
 
     monkeypatch.setattr(studies, "legs_study", tiny)
     monkeypatch.setattr(studies, "rft_standin",
