@@ -241,7 +241,7 @@ def register(app: typer.Typer) -> None:
         """Run a DDDAS study: datasets, figures and summary.json in --out."""
         from .. import io
         from ..dddas import studies
-        from ..errors import check_memory, integer
+        from ..errors import InputError, check_memory, choice, integer
         from ..models import ignored
 
         io.check_writable(out, "out", directory=True)
@@ -253,12 +253,8 @@ def register(app: typer.Typer) -> None:
             ignored("data", "has no effect with the foot study")
         if which.value == "foot" and leg:
             ignored("leg", "has no effect with the foot study")
-        from ..errors import choice
-
         legs = tuple(dict.fromkeys(choice("leg", x, list(studies.LEGS)) for x in leg)) or studies.LEGS
-        if len(legs) != len(leg) and leg:
-            from ..errors import InputError
-
+        if leg and len(legs) != len(leg):
             raise InputError("leg", f"each leg once, got {list(leg)}")
         io.check_input(trial, "trial")
         if trial is not None and which.value == "foot":
@@ -266,8 +262,6 @@ def register(app: typer.Typer) -> None:
 
             read_trial(trial)  # a bad trial: an error before the study's work
         if which.value in ("legs", "speed"):
-            from ..errors import InputError
-
             d = {}
             for item in data:
                 k, v = item.split("=", 1) if "=" in item else ("all", item)

@@ -117,8 +117,7 @@ def validate_cmd(
         choice("scene", s, list(suite.SCENES))
     dx = None if dx_mm is None else in_range("dx-mm", dx_mm, 1.0, 10.0, "mm") * 1e-3
     in_range("omega", omega, 0.01, 10.0, "rad/s")
-    if not 1 <= realizations <= 20:
-        raise InputError("realizations", f"must be in 1..20 runs per leg test, got {realizations}")
+    suite.check_realizations(realizations)  # before the output folder is made
     if realizations > 1 and scene and "legs" not in scene:
         from ..models import ignored
 

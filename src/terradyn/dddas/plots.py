@@ -248,7 +248,7 @@ def speed_study(result: dict, path, score: str = "assimilation", title: str = ""
             means = []
             for m, (label, color, marker) in _SPEED_STYLE.items():
                 y = np.asarray(d["mse_N2"][score][m][c], float).reshape(len(x), nseed).mean(1)
-                means.append(d["mse_mean_N2"][score][m][c] / d["mse_mean_N2"][score]["prior"][c])
+                means.append(d["mean_over_prior"][score][m][c])
                 ax.plot(x, y / prior, ls="none", marker=marker, ms=4, color=color, label=label)
             ax.axhline(1.0, color="0.5", ls="--", lw=1, label="prior (surrogate alone)")
             ax.set_title(f"{leg}: {c}; ratio of the means " + " / ".join(f"{r:.2f}" for r in means), fontsize=8)

@@ -141,6 +141,18 @@ def rig_against_table(medium: str, betas, gammas, az, ax) -> dict:
 
 
 # ---------------------------------------------------------------------------------- legs
+#: The most runs one leg test may average (``realizations``).
+MAX_REALIZATIONS = 20
+
+
+def check_realizations(n) -> int:
+    """``realizations`` as an int in 1..MAX_REALIZATIONS (else a one-line :class:`InputError`)."""
+    k = integer("realizations", n, 1)
+    if k > MAX_REALIZATIONS:
+        raise InputError("realizations", f"must be in 1..{MAX_REALIZATIONS} runs per leg test, got {n}")
+    return k
+
+
 def leg_vs_measured(name: str, medium, *, omega=1.1, dx=4e-3, config=None, progress=None, realizations: int = 1):
     """One leg in the rotating-leg test (hip 2 cm, -135..135 deg) in SPH, with RFT (the
     medium's measured grid, linear) and Li 2013 Fig. S5's measured curve: peaks (N) and RMS
@@ -159,9 +171,7 @@ def leg_vs_measured(name: str, medium, *, omega=1.1, dx=4e-3, config=None, progr
 
     mat = material(medium)
     exp = measured_legs()
-    n_real = integer("realizations", realizations, 1)
-    if n_real > 20:
-        raise InputError("realizations", f"must be <= 20, got {realizations}")
+    n_real = check_realizations(realizations)
 
     def motion(j=0):
         return Rotation(omega=omega, hip_height=2 * CM + 1e-8 * j, theta_start=-135 * DEG,
@@ -205,8 +215,7 @@ def validate(*, quick=False, scenes=SCENES, media=None, dx=None, omega=1.1, prog
 
     for s in scenes:
         choice("scene", s, list(SCENES))
-    if not 1 <= integer("realizations", realizations, 1) <= 20:
-        raise InputError("realizations", f"must be in 1..20, got {realizations}")
+    check_realizations(realizations)  # before any scene runs
     from .api import FULL_DX
 
     dx = dx or (4e-3 if quick else FULL_DX)  # full: the production resolution (docs/sph.md, Convergence)
