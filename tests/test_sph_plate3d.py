@@ -167,3 +167,28 @@ def test_shape_factor_is_the_de_beer_surcharge_factor():
         1 + (2.54 / 3.81) * math.tan(36 * DEG))
     assert P.shape_factor(P.PLATE_WIDTH, P.PLATE_LENGTH, 36 * DEG) == pytest.approx(
         P.shape_factor(P.PLATE_LENGTH, P.PLATE_WIDTH, 36 * DEG))
+
+
+def test_vertical_plate_pushed_horizontally_is_resisted_and_at_rest_feels_no_net_push():
+    cfg = SPHConfig(dx=6e-3, settle_time=0.01)
+    r = P.plate_drag3d("poppy LP", config=cfg, half_x=0.05, half_y=0.03, centre_depth=0.025,
+                       depth=0.06, travel=0.008, speed=0.1, n_samples=9)
+    fx = r["fx_N"]
+    assert r["scene"]["normal"] == "x" and r["force_factor"] == 2.0
+    # pushed along +x, the bed pushes back: alpha_x (against the motion) is positive ...
+    assert r["alpha_x"] > 0 and fx[-1] < 0
+    # ... and grows from the settled state, where the two faces' pressures balance
+    assert abs(fx[0]) < 0.3 * abs(fx[-1])
+    assert r["lost"] == 0
+
+
+def test_vertical_plate_bad_requests_are_one_line_errors():
+    with pytest.raises(InputError, match="normal"):
+        P.plate_scene("poppy LP", dx=6e-3, normal="y")
+    with pytest.raises(InputError, match="mirror_x"):
+        P.plate_scene("poppy LP", dx=6e-3, normal="x")
+    with pytest.raises(InputError, match="centre_depth"):
+        P.plate_scene("poppy LP", dx=6e-3, normal="x", mirror_x=False, depth=0.04,
+                      centre_depth=0.03)
+    with pytest.raises(InputError, match="travel"):
+        P.plate_drag3d("poppy LP", travel=0.0)

@@ -48,7 +48,7 @@ from dataclasses import dataclass, field
 import numpy as np
 from numba import njit
 
-from ..errors import InputError, check_memory, in_range, integer, positive
+from ..errors import InputError, check_memory, choice, in_range, integer, positive
 from ..units import CM, G
 from .calibration import PLATE_TEST
 from .materials import GranularMaterial, material as _material
@@ -70,14 +70,14 @@ PLATE_LENGTH, PLATE_WIDTH, PLATE_THICKNESS = 3.81 * CM, 2.54 * CM, 0.64 * CM
 FP = ("h", "dt", "shear_mod", "bulk_mod", "alpha_phi", "k_c", "rho_min", "rho_max", "alpha_psi",
       "rho_crit", "c0", "av_alpha", "av_beta", "gz", "half_t", "gap", "max_push", "vmax",
       "plate_a", "plate_b", "ly", "x_lo", "y_lo", "z_lo", "inv_cell", "rlist", "x_hi_box",
-      "y_hi_box", "z_lo_box", "side_reach", "x_lo_box")
+      "y_hi_box", "z_lo_box", "side_reach", "x_lo_box", "plate_c")
 (F_H, F_DT, F_G, F_K, F_APHI, F_KC, F_RMIN, F_RMAX, F_APSI, F_RCRIT, F_C0, F_AVA, F_AVB, F_GZ,
  F_HALFT, F_GAP, F_MAXPUSH, F_VMAX, F_PA, F_PB, F_LY, F_XLO, F_YLO, F_ZLO, F_INVC, F_RLIST,
- F_XHIB, F_YHIB, F_ZLOB, F_SREACH, F_XLOB) = range(len(FP))
+ F_XHIB, F_YHIB, F_ZLOB, F_SREACH, F_XLOB, F_PC) = range(len(FP))
 IP = ("nr", "ng", "nss", "nsb", "ncx", "ncy", "ncz", "mirror_x", "mirror_y0", "mirror_y1",
-      "slab", "builds", "has_plate", "bad", "lost")
+      "slab", "builds", "has_plate", "bad", "lost", "pax")
 (I_NR, I_NG, I_NSS, I_NSB, I_NCX, I_NCY, I_NCZ, I_MX, I_MY0, I_MY1, I_SLAB, I_BUILDS, I_PLATE,
- I_BAD, I_LOST) = range(len(IP))
+ I_BAD, I_LOST, I_PAX) = range(len(IP))
 #: Kernel return codes.
 OK, UNSTABLE, PAIRS_FULL, GHOSTS_FULL = 0, 1, 2, 3
 
@@ -346,6 +346,7 @@ def _boundary_pass(pos, vel, gv, rho, sig, kind, nz, dcl, sb, sbo, wsb, reuse, b
     n = nr + ip[I_NG]
     sup2 = 4.0 * h * h
     c_w = _W3D / (h * h * h)
+    nax = ip[I_PAX]
     bacc[:nr] = 0.0
     for f in range(n):
         if kind[f] != SOIL:
@@ -370,7 +371,7 @@ def _boundary_pass(pos, vel, gv, rho, sig, kind, nz, dcl, sb, sbo, wsb, reuse, b
                 r2 = rx * rx + ry * ry + rz * rz
                 if r2 >= sup2:
                     continue
-                if kind[w] == LEG and (-rz * nz[w] + dcl[w]) <= 0.0:
+                if kind[w] == LEG and (-(pos[w, nax] - pos[f, nax]) * nz[w] + dcl[w]) <= 0.0:
                     continue
                 q = math.sqrt(r2) / h
                 t = 1.0 - 0.5 * q
@@ -434,6 +435,7 @@ def _strain_pass(pos, vel, gv, rho, mass, sig, kind, nz, dcl, side, ss, sso, sb,
     sup2 = 4.0 * h * h
     dwc = -5.0 * _W3D / (h * h * h * h * h)
     inv_h = 1.0 / h
+    nax = ip[I_PAX]
     lg[:nr] = 0.0
     for a in range(nr):
         if kind[a] != SOIL:
@@ -474,7 +476,7 @@ def _strain_pass(pos, vel, gv, rho, mass, sig, kind, nz, dcl, side, ss, sso, sb,
             r2 = rx * rx + ry * ry + rz * rz
             if r2 >= sup2:
                 continue
-            if kind[w] == LEG and rz * nz[w] + dcl[w] <= 0.0:
+            if kind[w] == LEG and (pos[a, nax] - pos[w, nax]) * nz[w] + dcl[w] <= 0.0:
                 continue
             t = 1.0 - 0.5 * math.sqrt(r2) * inv_h
             fdw = dwc * t * t * t
@@ -522,6 +524,7 @@ def _accel_pass(pos, vel, rho, mass, sig, psig, kind, nz, dcl, grd, ss, sso, sb,
     ava = fp[F_AVA]
     avb = fp[F_AVB]
     half_t = fp[F_HALFT]
+    nax = ip[I_PAX]
     for i in range(nr + ip[I_NG]):
         r = rho[i]
         inv2 = 1.0 / (r * r)
@@ -590,7 +593,7 @@ def _accel_pass(pos, vel, rho, mass, sig, psig, kind, nz, dcl, grd, ss, sso, sb,
                 f3y -= ma * pay
                 f3z -= ma * paz
                 if grd[w] > 0.0:
-                    dn = rz * nz[w] + dcl[w] - half_t
+                    dn = (pos[a, nax] - pos[w, nax]) * nz[w] + dcl[w] - half_t
                     if dn < dmin:
                         dmin = dn
                         pn = nz[w]
@@ -621,6 +624,7 @@ def _kick(pos, vel, mass, rho, sig, kind, acc, cont, vplate, damp, force, fp, ip
     mx = ip[I_MX] != 0
     my0 = ip[I_MY0] != 0
     my1 = ip[I_MY1] != 0
+    nax = ip[I_PAX]
     bad = -1
     for i in range(nr):
         if kind[i] != SOIL:
@@ -633,11 +637,17 @@ def _kick(pos, vel, mass, rho, sig, kind, acc, cont, vplate, damp, force, fp, ip
         fz = acc[i, 5]
         pn = cont[i, 1]
         dp = 0.0
-        if pn != 0.0:
-            vn = (nvz - vplate) * pn
-            if vn < 0.0:
-                nvz -= vn * pn
-                fz += mass[i] * vn * pn / dt
+        if pn != 0.0:  # the guard, along the plate's normal axis
+            if nax == 2:
+                vn = (nvz - vplate) * pn
+                if vn < 0.0:
+                    nvz -= vn * pn
+                    fz += mass[i] * vn * pn / dt
+            else:
+                vn = (nvx - vplate) * pn
+                if vn < 0.0:
+                    nvx -= vn * pn
+                    fx += mass[i] * vn * pn / dt
             dp = min(gap - cont[i, 0], max_push)
         force[0] += fx
         force[1] += fy
@@ -645,9 +655,9 @@ def _kick(pos, vel, mass, rho, sig, kind, acc, cont, vplate, damp, force, fp, ip
         vel[i, 0] = nvx
         vel[i, 1] = nvy
         vel[i, 2] = nvz
-        x = pos[i, 0] + dt * nvx
+        x = pos[i, 0] + dt * nvx + (dp * pn if nax == 0 else 0.0)
         y = pos[i, 1] + dt * nvy
-        z = pos[i, 2] + dt * nvz + dp * pn
+        z = pos[i, 2] + dt * nvz + (dp * pn if nax == 2 else 0.0)
         flip_x = mx and x < 0.0
         flip_y = (my0 and y < 0.0) or (my1 and y > ly)
         if flip_x:
@@ -678,19 +688,23 @@ def _kick(pos, vel, mass, rho, sig, kind, acc, cont, vplate, damp, force, fp, ip
 
 @njit(cache=True, fastmath=True)
 def _sides(pos, kind, side, zc, fp, ip):
-    """Side of the plate of every real granular particle: +1 / -1 above / below its
-    mid-plane where it lies over the plate (|x| <= a, |y| <= b, or any y in the slab) within
-    the side reach (2h + t/2) of it, 0 elsewhere (the 2D side test)."""
+    """Side of the plate of every real granular particle: +1 / -1 on the positive / negative
+    side of its mid-plane (the plane normal to axis ``nax`` through zc) where it lies over
+    the plate (|chord coordinate - plate_c| <= a, |y| <= b, or any y in the slab) within the
+    side reach (2h + t/2) of it, 0 elsewhere (the 2D side test)."""
     a = fp[F_PA]
     b = fp[F_PB]
+    pc = fp[F_PC]
     reach = fp[F_SREACH]
     slab = ip[I_SLAB] != 0
+    nax = ip[I_PAX]
+    cax = 2 - nax  # the chord's axis: x for a horizontal plate, z for a vertical one
     for i in range(ip[I_NR]):
         if kind[i] != SOIL:
             continue
-        dz = pos[i, 2] - zc
+        dz = pos[i, nax] - zc
         s = 0.0
-        if abs(pos[i, 0]) <= a and (slab or abs(pos[i, 1]) <= b) and abs(dz) < reach:
+        if abs(pos[i, cax] - pc) <= a and (slab or abs(pos[i, 1]) <= b) and abs(dz) < reach:
             s = 1.0 if dz > 0.0 else -1.0
         side[i] = s
 
@@ -719,16 +733,18 @@ def steps3d(zc, vz, damp, forces, pos, vel, gv, rho, mass, sig, kind, nz, dcl, g
     plate. Returns (steps done, code): OK; UNSTABLE (ip bad: the particle); PAIRS_FULL or
     GHOSTS_FULL (the lists did not fit: the step was not done, enlarge and call again)."""
     nr = ip[I_NR]
+    nax = ip[I_PAX]
     thr = (0.5 * SKIN * fp[F_H]) ** 2
     f3 = np.zeros(3)
     for s in range(zc.shape[0]):
         if ip[I_PLATE]:
             for kk in range(lidx.shape[0]):
                 w = lidx[kk]
-                pos[w, 2] = zc[s] + boz[kk]
+                pos[w, nax] = zc[s] + boz[kk]
                 vel[w, 0] = 0.0
                 vel[w, 1] = 0.0
-                vel[w, 2] = vz[s]
+                vel[w, 2] = 0.0
+                vel[w, nax] = vz[s]
             _sides(pos, kind, side, zc[s], fp, ip)
         if ip[I_BUILDS] == 0 or _max_disp2(pos, pb, kind, nr) > thr:
             ng = _make_ghosts(pos, kind, src, gs, go, fp, ip)
@@ -828,7 +844,8 @@ def plate_scene(medium: str | GranularMaterial = "3 mm glass CP", *, dx: float =
                 slab: int | None = None, half_x: float | None = None,
                 half_y: float | None = None, depth: float | None = None,
                 mirror_x: bool = True, z0: float | None = None,
-                with_plate: bool = True) -> Scene3D:
+                with_plate: bool = True, normal: str = "z",
+                centre_depth: float = 0.03) -> Scene3D:
     """The bed and plate of the 3D plate test, a quarter of it (symmetry planes x = 0, y = 0).
 
     The plate (``length`` along x, ``width`` along y, ``thickness``) is centred at x = y = 0
@@ -839,7 +856,16 @@ def plate_scene(medium: str | GranularMaterial = "3 mm glass CP", *, dx: float =
     above the surface, ``config.wall_layers`` layers). ``slab`` = n: the plane-strain
     configuration instead, a slab n particles thick in y between two symmetry planes with
     the plate spanning it (the 2D test in 3D). ``mirror_x`` False: both halves in x, with a
-    wall at -half_x (a check of the x mirror). ``with_plate`` False: the bed alone."""
+    wall at -half_x (a check of the x mirror). ``with_plate`` False: the bed alone.
+
+    ``normal`` "x": a vertical plate instead (the rig's beta = pi/2), its chord ``length``
+    along z centred ``centre_depth`` below the surface, its normal along x, its mid-plane at
+    x = ``z0`` (default 0), to be moved along x (:func:`plate_drag3d`); both halves of the
+    bed in x (``mirror_x`` must be False), the y = 0 symmetry plane kept."""
+    choice("normal", normal, ["x", "z"])
+    if normal == "x" and mirror_x:
+        raise InputError("mirror_x", "a vertical plate (normal x) moves along x: the bed needs "
+                                     "both halves in x (mirror_x=False)")
     mat = _material(medium)
     cfg = config or SPHConfig(dx=dx)
     dx = cfg.dx
@@ -905,14 +931,29 @@ def plate_scene(medium: str | GranularMaterial = "3 mm glass CP", *, dx: float =
             mk.append(np.stack([MX, MY, np.full_like(MX, sd * d), np.full_like(MX, sd),
                                 np.full_like(MX, d), guard_xy.astype(float)], -1))
     mk = np.concatenate(mk) if with_plate else np.zeros((0, 6))
-    zc0 = z0 if z0 is not None else 0.5 * t + 0.5 * dx
-    # granular particles inside the plate's body at the start (none when it starts above)
-    inside = ((np.abs(soil[:, 0]) <= a + 0.5 * dx) & ((slab is not None) | (soil[:, 1] <= b + 0.5 * dx))
-              & (np.abs(soil[:, 2] - zc0) <= 0.5 * t + 0.5 * dx))
+    if normal == "z":
+        zc0 = z0 if z0 is not None else 0.5 * t + 0.5 * dx
+        pc = 0.0
+        # granular particles inside the plate's body at the start (none when it starts above)
+        inside = ((np.abs(soil[:, 0]) <= a + 0.5 * dx)
+                  & ((slab is not None) | (soil[:, 1] <= b + 0.5 * dx))
+                  & (np.abs(soil[:, 2] - zc0) <= 0.5 * t + 0.5 * dx))
+        mpos = np.stack([mk[:, 0], mk[:, 1], zc0 + mk[:, 2]], -1)
+    else:  # body (chord, y, normal offset) -> world (x = x0 + offset, y, z = -depth + chord)
+        positive("centre_depth", centre_depth, "m")
+        if centre_depth + a > D:
+            raise InputError("centre_depth", f"the plate's lower edge ({(centre_depth + a) * 100:g} "
+                                             f"cm deep) must lie inside the bed ({D * 100:g} cm)")
+        zc0 = z0 if z0 is not None else 0.0
+        pc = -centre_depth
+        inside = ((np.abs(soil[:, 2] - pc) <= a + 0.5 * dx)
+                  & ((slab is not None) | (soil[:, 1] <= b + 0.5 * dx))
+                  & (np.abs(soil[:, 0] - zc0) <= 0.5 * t + 0.5 * dx))
+        mpos = np.stack([zc0 + mk[:, 2], mk[:, 1], pc + mk[:, 0]], -1)
     if with_plate:
         soil = soil[~inside]
     ns, nw, nm = len(soil), len(walls), len(mk)
-    pos = np.concatenate([soil, walls, np.stack([mk[:, 0], mk[:, 1], zc0 + mk[:, 2]], -1)])
+    pos = np.concatenate([soil, walls, mpos])
     kind = np.concatenate([np.full(ns, SOIL), np.full(nw, WALL), np.full(nm, LEG)]).astype(np.int8)
     n = len(kind)
     rho = np.full(n, mat.density)
@@ -932,10 +973,12 @@ def plate_scene(medium: str | GranularMaterial = "3 mm glass CP", *, dx: float =
            hy + (0.0 if slab is not None else layers * dx), -D - layers * dx)
     meta = {"scene": "plate3d", "dx_m": dx, "half_x_m": hx, "half_y_m": hy, "depth_m": D,
             "slab_layers": slab, "mirror_x": mirror_x, "plate_m": [length, width, thickness],
-            "z0_m": zc0, "granular": ns, "wall": nw, "markers": nm, "wall_top_m": top}
+            "z0_m": zc0, "granular": ns, "wall": nw, "markers": nm, "wall_top_m": top,
+            "normal": normal, "centre_depth_m": centre_depth if normal == "x" else None}
     return Scene3D(pos, kind, mass, rho, sig, np.zeros((n, 3)), mat, cfg, nzv, dcl, grd,
                    mk[:, 2].copy(), mirror=(mirror_x, True, slab is not None), ly=hy, box=box,
-                   plate={"a": a, "b": b, "t": t, "slab": slab is not None, "z0": zc0},
+                   plate={"a": a, "b": b, "t": t, "slab": slab is not None, "z0": zc0,
+                          "axis": 2 if normal == "z" else 0, "c": pc},
                    depth=D, meta=meta)
 
 
@@ -1020,12 +1063,14 @@ class Solver3D:
                    max_push=0.1 * cfg.dx, vmax=self.c0, plate_a=plate["a"], plate_b=plate["b"],
                    ly=sc.ly, x_lo=lo[0], y_lo=lo[1], z_lo=lo[2], inv_cell=1.0 / cell,
                    rlist=self.rlist, x_hi_box=sc.box[1], y_hi_box=sc.box[2], z_lo_box=sc.box[3],
-                   side_reach=2.0 * self.h + 0.5 * plate["t"], x_lo_box=sc.box[0])
+                   side_reach=2.0 * self.h + 0.5 * plate["t"], x_lo_box=sc.box[0],
+                   plate_c=plate.get("c", 0.0))
         self.fp = np.array([val[k] for k in FP], dtype=np.float64)
         ival = dict(nr=nr, ng=0, nss=0, nsb=0, ncx=ncell[0], ncy=ncell[1], ncz=ncell[2],
                     mirror_x=int(sc.mirror[0]), mirror_y0=int(sc.mirror[1]),
                     mirror_y1=int(sc.mirror[2]), slab=int(bool(plate["slab"])), builds=0,
-                    has_plate=int(len(self.lidx) > 0), bad=-1, lost=0)
+                    has_plate=int(len(self.lidx) > 0), bad=-1, lost=0,
+                    pax=int(plate.get("axis", 2)))
         self.ip = np.array([ival[k] for k in IP], dtype=np.int64)
         self.t = 0.0
         self.step_count = 0
@@ -1207,6 +1252,60 @@ def plate_push3d(medium: str | GranularMaterial = "3 mm glass CP", *, dx: float 
             "force_factor": fac, "area_m2": area, "steps": nsteps, "dt_s": s.dt,
             "particles": s.nr, "ghosts": int(s.ip[I_NG]), "pairs": int(s.ip[I_NSS] + s.ip[I_NSB]),
             "lost": s.lost, "wall_s": wall, "scene": sc.meta, "solver": s}
+
+
+def plate_drag3d(medium: str | GranularMaterial = "3 mm glass CP", *, dx: float = 4e-3,
+                 config: SPHConfig | None = None, slab: int | None = None,
+                 half_x: float = 0.08, half_y: float | None = None, depth: float | None = None,
+                 centre_depth: float = 0.03, travel: float = 0.02, speed: float = 0.02,
+                 n_samples: int = 41, realization: int = 0, progress=None) -> dict:
+    """Li 2013's plate held vertical (attack angle beta = pi/2) and pushed horizontally
+    (gamma = 0) in 3D: the virtual rig's point (:func:`terradyn.sph.suite.rig_point`) with
+    the plate's real 2.54 cm width instead of plane strain. The plate's centre is
+    ``centre_depth`` deep; it starts ``travel``/2 behind x = 0 in the settled bed (the bed
+    settles around it) and moves ``travel`` at ``speed``. As in the 2D rig, alpha = force /
+    (area x centre depth) averaged over the second half of the travel: alpha_x (against
+    the motion) and alpha_z (up), N/m^3. ``slab``: the plane-strain configuration (the
+    plate spans a slab between two symmetry planes; the 2D rig's geometry in this code).
+    Bed: x in [-half_x, half_x] (the 2D rig's 16 cm), y in [0, half_y] (default 3 plate
+    widths), ``depth`` (default the 2D rig's centre depth + travel/2 + 5 cm)."""
+    positive("speed", speed, "m/s")
+    positive("travel", travel, "m")
+    integer("n_samples", n_samples, 3)
+    cfg = config or SPHConfig(dx=dx)
+    D = depth if depth is not None else centre_depth + 0.5 * travel + 0.05
+    x0 = -0.5 * travel + 1e-8 * int(realization)
+    sc = plate_scene(medium, config=cfg, slab=slab, half_x=half_x, half_y=half_y, depth=D,
+                     mirror_x=False, z0=x0, normal="x", centre_depth=centre_depth)
+    t_wall = time.perf_counter()
+    s = Solver3D(sc, plate_speed=speed)
+    T = travel / speed
+    nsteps = int(math.ceil((s.settle_time + T) / s.dt))
+    ts = np.arange(nsteps) * s.dt
+    settling = ts < s.settle_time
+    tm = np.maximum(ts - s.settle_time, 0.0)
+    xc = x0 + speed * tm
+    vx = np.where(settling, 0.0, speed)
+    damp = np.where(settling, s.settle_damping, 0.0)
+    forces = np.zeros((nsteps, 3))
+    block = 2000
+    for k in range(0, nsteps, block):
+        forces[k:k + block] = s.advance(xc[k:k + block], vx[k:k + block], damp[k:k + block])
+        if progress is not None:
+            progress(min(k + block, nsteps) * s.dt, nsteps * s.dt)
+    fac = force_factor(sc)
+    area = plate_area(sc)
+    keep = ~settling
+    t_rec = ts[keep] - s.settle_time
+    t = np.linspace(0.0, T, n_samples)
+    fx = np.interp(t, t_rec, forces[keep, 0]) * fac
+    fz = np.interp(t, t_rec, forces[keep, 2]) * fac
+    late = t >= 0.5 * T
+    return {"alpha_x": float(np.mean(-fx[late] / (area * centre_depth))),
+            "alpha_z": float(np.mean(fz[late] / (area * centre_depth))),
+            "time": t, "fx_N": fx, "fz_N": fz, "force_factor": fac, "area_m2": area,
+            "steps": nsteps, "dt_s": s.dt, "particles": s.nr, "ghosts": int(s.ip[I_NG]),
+            "lost": s.lost, "wall_s": time.perf_counter() - t_wall, "scene": sc.meta}
 
 
 def shape_factor(length: float, width: float, friction: float) -> float:
