@@ -6,7 +6,7 @@ as fractions of the largest measured |alpha_z| (target <= 0.20 each).
         [--dp-match plane-strain|bui2008] [--threads 1] [--figure docs/figures/sph_rig_poppy_LP.png]
 
 Writes benchmarks/results/sph_rig_<medium>.json (sph_rig_<medium>_quick.json for the subset;
-the files the report and docs/sph.md read) once the grid is complete; every finished point is kept in
+the files the report and docs/sph.md read; another --dx-mm adds _<dx>mm to the name) once the grid is complete; every finished point is kept in
 benchmarks/results/sph_rig_<medium>.partial.json, so an interrupted study resumes where it
 stopped. A study, not a timing benchmark: the wall time is recorded as run."""
 from __future__ import annotations
@@ -39,7 +39,8 @@ def main() -> None:
     from terradyn.units import DEG, N_PER_CM3
 
     mat = from_medium(a.medium, dp_match=a.dp_match)
-    stem = "sph_rig_" + a.medium.replace(" ", "_") + ("_quick" if a.quick else "")
+    stem = ("sph_rig_" + a.medium.replace(" ", "_") + ("_quick" if a.quick else "")
+            + ("" if a.dx_mm == 4.0 else f"_{a.dx_mm:g}mm"))  # 4 mm: the files docs and report read
     final, partial = RES / f"{stem}.json", RES / f"{stem}.partial.json"
     settings = {"dx_mm": a.dx_mm, "dp_match": a.dp_match, "quick": a.quick,
                 "friction_deg": round(mat.friction / DEG, 3), "youngs_MPa": mat.youngs / 1e6,

@@ -232,3 +232,35 @@ def test_validate_cli_refuses_bad_realizations(tmp_path, capsys):
 
     rc = main(["sph", "validate", "--scene", "legs", "--realizations", "0", "--out", str(tmp_path / "v")])
     assert rc == 2 and "realizations" in capsys.readouterr().err and not (tmp_path / "v").exists()
+
+
+def test_rig_table_from_the_measured_grid_gives_the_measured_tables_rft():
+    # a rig result on Table S5's grid (the rig leaves out beta = -pi/2) holding Table S5's
+    # own values: RFT from it is RFT from Table S5
+    from terradyn.media import stress_model
+    from terradyn.motion import Rotation
+    from terradyn.rft import simulate
+    from terradyn.units import CM
+
+    meas = stress_model("poppy LP", "table", interp="linear")
+    own = suite.rig_table({"beta": meas.beta[1:], "gamma": meas.gamma,
+                           "alpha_z": meas.alpha_z[1:] / N_PER_CM3,
+                           "alpha_x": meas.alpha_x[1:] / N_PER_CM3})
+    assert np.allclose(own.alpha_z[0], own.alpha_z[-1])  # beta = -pi/2 is the +pi/2 plate
+    mot = Rotation(omega=1.1, hip_height=2 * CM, theta_start=-135 * DEG, theta_end=135 * DEG,
+                   n_theta=91)
+    for leg in ("flat", "c"):
+        a = simulate(suite.make_leg(leg), mot, own)
+        b = simulate(suite.make_leg(leg), mot, meas)
+        for comp in ("Fx", "Fz"):
+            assert np.allclose(a[comp].values, b[comp].values, rtol=1e-9, atol=1e-9)
+
+
+def test_rig_table_needs_the_full_grid():
+    betas, gammas = suite.rig_grid(True)
+    z = np.zeros((len(betas), len(gammas)))
+    with pytest.raises(InputError, match="rig"):
+        suite.rig_table({"beta": betas, "gamma": gammas, "alpha_z": z, "alpha_x": z})
+    betas, gammas = suite.rig_grid(False)
+    with pytest.raises(InputError, match="rig"):
+        suite.rig_table({"beta": betas, "gamma": gammas, "alpha_z": z, "alpha_x": z})

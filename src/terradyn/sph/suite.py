@@ -140,6 +140,35 @@ def rig_against_table(medium: str, betas, gammas, az, ax) -> dict:
             "rms_x_frac": float(np.sqrt(np.mean((ax - mx) ** 2)) / scale)}
 
 
+def rig_table(rig: dict, name: str = "SPH rig", method: str = "linear"):
+    """The rig's own alpha maps (a :func:`rig_against_table` / ``benchmarks/sph_rig.py``
+    result on the full grid: ``beta``, ``gamma`` in rad, ``alpha_z``, ``alpha_x`` in N/cm^3)
+    as a :class:`terradyn.media.StressTable`, so that RFT can be built from SPH's local
+    stresses: RFT from this table against the SPH legs separates what the SPH leg owes to
+    its local stresses from what it owes to the scene (history, the leg's own wake). The
+    grid's missing beta = -pi/2 row is the beta = +pi/2 plate (the same vertical plate; Table
+    S5 lists it twice with equal values)."""
+    from ..media import StressTable
+
+    b = np.asarray(rig["beta"], float)
+    g = np.asarray(rig["gamma"], float)
+    az = np.asarray(rig["alpha_z"], float) * N_PER_CM3
+    ax = np.asarray(rig["alpha_x"], float) * N_PER_CM3
+    if az.shape != (len(b), len(g)) or ax.shape != az.shape:
+        raise InputError("rig", f"alpha maps of shape {az.shape} do not match the grid "
+                                f"({len(b)} beta x {len(g)} gamma)")
+    if not (abs(b[-1] - np.pi / 2) < 1e-6 and abs(g[0] + np.pi / 2) < 1e-6
+            and abs(g[-1] - np.pi / 2) < 1e-6) or b[0] <= -np.pi / 2 + 1e-6:
+        raise InputError("rig", "needs the full rig grid: beta up to pi/2 (without -pi/2), "
+                                "gamma from -pi/2 to pi/2 (benchmarks/sph_rig.py without --quick)")
+    B = np.concatenate([[-np.pi / 2], b])
+    B[-1] = np.pi / 2
+    G = g.copy()
+    G[0], G[-1] = -np.pi / 2, np.pi / 2
+    return StressTable(name, B, G, np.vstack([az[-1:], az]), np.vstack([ax[-1:], ax]), method,
+                       "SPH virtual plate rig (terradyn.sph.suite.rig_point)")
+
+
 # ---------------------------------------------------------------------------------- legs
 #: The most runs one leg test may average (``realizations``).
 MAX_REALIZATIONS = 20
