@@ -70,14 +70,21 @@ PLATE_LENGTH, PLATE_WIDTH, PLATE_THICKNESS = 3.81 * CM, 2.54 * CM, 0.64 * CM
 FP = ("h", "dt", "shear_mod", "bulk_mod", "alpha_phi", "k_c", "rho_min", "rho_max", "alpha_psi",
       "rho_crit", "c0", "av_alpha", "av_beta", "gz", "half_t", "gap", "max_push", "vmax",
       "plate_a", "plate_b", "ly", "x_lo", "y_lo", "z_lo", "inv_cell", "rlist", "x_hi_box",
-      "y_hi_box", "z_lo_box", "side_reach", "x_lo_box", "plate_c")
+      "y_hi_box", "z_lo_box", "side_reach", "x_lo_box", "p_cx", "p_cz", "p_ux", "p_uz", "p_vx",
+      "p_vz", "p_om")
 (F_H, F_DT, F_G, F_K, F_APHI, F_KC, F_RMIN, F_RMAX, F_APSI, F_RCRIT, F_C0, F_AVA, F_AVB, F_GZ,
  F_HALFT, F_GAP, F_MAXPUSH, F_VMAX, F_PA, F_PB, F_LY, F_XLO, F_YLO, F_ZLO, F_INVC, F_RLIST,
- F_XHIB, F_YHIB, F_ZLOB, F_SREACH, F_XLOB, F_PC) = range(len(FP))
+ F_XHIB, F_YHIB, F_ZLOB, F_SREACH, F_XLOB, F_CX, F_CZ, F_UX, F_UZ, F_VX, F_VZ, F_OM) = range(len(FP))
+#: Columns of a plate pose row (per step): centre x, z (m), angle phi of the chord from +x
+#: towards +z (rad), centre velocity x, z (m/s), angular velocity d phi / dt (rad/s). The
+#: chord is u = (cos phi, sin phi), the normal n = (-sin phi, cos phi) (phi = 0: the
+#: horizontal plate of the plate test, normal up); a point r moves at v_c + om (-(r_z - c_z),
+#: r_x - c_x).
+POSE = ("cx", "cz", "phi", "vx", "vz", "om")
 IP = ("nr", "ng", "nss", "nsb", "ncx", "ncy", "ncz", "mirror_x", "mirror_y0", "mirror_y1",
-      "slab", "builds", "has_plate", "bad", "lost", "pax")
+      "slab", "builds", "has_plate", "bad", "lost")
 (I_NR, I_NG, I_NSS, I_NSB, I_NCX, I_NCY, I_NCZ, I_MX, I_MY0, I_MY1, I_SLAB, I_BUILDS, I_PLATE,
- I_BAD, I_LOST, I_PAX) = range(len(IP))
+ I_BAD, I_LOST) = range(len(IP))
 #: Kernel return codes.
 OK, UNSTABLE, PAIRS_FULL, GHOSTS_FULL = 0, 1, 2, 3
 
@@ -346,7 +353,8 @@ def _boundary_pass(pos, vel, gv, rho, sig, kind, nz, dcl, sb, sbo, wsb, reuse, b
     n = nr + ip[I_NG]
     sup2 = 4.0 * h * h
     c_w = _W3D / (h * h * h)
-    nax = ip[I_PAX]
+    pnx = -fp[F_UZ]  # the plate's normal
+    pnz = fp[F_UX]
     bacc[:nr] = 0.0
     for f in range(n):
         if kind[f] != SOIL:
@@ -371,7 +379,8 @@ def _boundary_pass(pos, vel, gv, rho, sig, kind, nz, dcl, sb, sbo, wsb, reuse, b
                 r2 = rx * rx + ry * ry + rz * rz
                 if r2 >= sup2:
                     continue
-                if kind[w] == LEG and (-(pos[w, nax] - pos[f, nax]) * nz[w] + dcl[w]) <= 0.0:
+                if kind[w] == LEG and ((xf - pos[w, 0]) * pnx + (zf - pos[w, 2]) * pnz) * nz[w] \
+                        + dcl[w] <= 0.0:
                     continue
                 q = math.sqrt(r2) / h
                 t = 1.0 - 0.5 * q
@@ -435,7 +444,8 @@ def _strain_pass(pos, vel, gv, rho, mass, sig, kind, nz, dcl, side, ss, sso, sb,
     sup2 = 4.0 * h * h
     dwc = -5.0 * _W3D / (h * h * h * h * h)
     inv_h = 1.0 / h
-    nax = ip[I_PAX]
+    pnx = -fp[F_UZ]  # the plate's normal
+    pnz = fp[F_UX]
     lg[:nr] = 0.0
     for a in range(nr):
         if kind[a] != SOIL:
@@ -476,7 +486,7 @@ def _strain_pass(pos, vel, gv, rho, mass, sig, kind, nz, dcl, side, ss, sso, sb,
             r2 = rx * rx + ry * ry + rz * rz
             if r2 >= sup2:
                 continue
-            if kind[w] == LEG and (pos[a, nax] - pos[w, nax]) * nz[w] + dcl[w] <= 0.0:
+            if kind[w] == LEG and (rx * pnx + rz * pnz) * nz[w] + dcl[w] <= 0.0:
                 continue
             t = 1.0 - 0.5 * math.sqrt(r2) * inv_h
             fdw = dwc * t * t * t
@@ -524,7 +534,8 @@ def _accel_pass(pos, vel, rho, mass, sig, psig, kind, nz, dcl, grd, ss, sso, sb,
     ava = fp[F_AVA]
     avb = fp[F_AVB]
     half_t = fp[F_HALFT]
-    nax = ip[I_PAX]
+    pnx = -fp[F_UZ]  # the plate's normal
+    pnz = fp[F_UX]
     for i in range(nr + ip[I_NG]):
         r = rho[i]
         inv2 = 1.0 / (r * r)
@@ -593,7 +604,7 @@ def _accel_pass(pos, vel, rho, mass, sig, psig, kind, nz, dcl, grd, ss, sso, sb,
                 f3y -= ma * pay
                 f3z -= ma * paz
                 if grd[w] > 0.0:
-                    dn = (pos[a, nax] - pos[w, nax]) * nz[w] + dcl[w] - half_t
+                    dn = (rx * pnx + rz * pnz) * nz[w] + dcl[w] - half_t
                     if dn < dmin:
                         dmin = dn
                         pn = nz[w]
@@ -608,7 +619,7 @@ def _accel_pass(pos, vel, rho, mass, sig, psig, kind, nz, dcl, grd, ss, sso, sb,
 
 
 @njit(cache=True, fastmath=True)
-def _kick(pos, vel, mass, rho, sig, kind, acc, cont, vplate, damp, force, fp, ip):
+def _kick(pos, vel, mass, rho, sig, kind, acc, cont, damp, force, fp, ip):
     """Kick, contact guard and drift of the real granular particles; mirror reflection at
     the symmetry planes; granular particles that left the box become LOST. Adds the force on
     the plate (pair forces + the guard's momentum) to force (3,). Returns the index of a
@@ -624,7 +635,9 @@ def _kick(pos, vel, mass, rho, sig, kind, acc, cont, vplate, damp, force, fp, ip
     mx = ip[I_MX] != 0
     my0 = ip[I_MY0] != 0
     my1 = ip[I_MY1] != 0
-    nax = ip[I_PAX]
+    pnx = -fp[F_UZ]  # the plate's normal
+    pnz = fp[F_UX]
+    cx, cz, pvx, pvz, om = fp[F_CX], fp[F_CZ], fp[F_VX], fp[F_VZ], fp[F_OM]
     bad = -1
     for i in range(nr):
         if kind[i] != SOIL:
@@ -637,17 +650,16 @@ def _kick(pos, vel, mass, rho, sig, kind, acc, cont, vplate, damp, force, fp, ip
         fz = acc[i, 5]
         pn = cont[i, 1]
         dp = 0.0
-        if pn != 0.0:  # the guard, along the plate's normal axis
-            if nax == 2:
-                vn = (nvz - vplate) * pn
-                if vn < 0.0:
-                    nvz -= vn * pn
-                    fz += mass[i] * vn * pn / dt
-            else:
-                vn = (nvx - vplate) * pn
-                if vn < 0.0:
-                    nvx -= vn * pn
-                    fx += mass[i] * vn * pn / dt
+        gnx = pn * pnx  # the guarded face's outward normal
+        gnz = pn * pnz
+        if pn != 0.0:  # the guard: no approach faster than the plate's rigid motion there
+            vn = ((nvx - pvx + om * (pos[i, 2] - cz)) * gnx
+                  + (nvz - pvz - om * (pos[i, 0] - cx)) * gnz)
+            if vn < 0.0:
+                nvx -= vn * gnx
+                nvz -= vn * gnz
+                fx += mass[i] * vn * gnx / dt
+                fz += mass[i] * vn * gnz / dt
             dp = min(gap - cont[i, 0], max_push)
         force[0] += fx
         force[1] += fy
@@ -655,9 +667,9 @@ def _kick(pos, vel, mass, rho, sig, kind, acc, cont, vplate, damp, force, fp, ip
         vel[i, 0] = nvx
         vel[i, 1] = nvy
         vel[i, 2] = nvz
-        x = pos[i, 0] + dt * nvx + (dp * pn if nax == 0 else 0.0)
+        x = pos[i, 0] + dt * nvx + dp * gnx
         y = pos[i, 1] + dt * nvy
-        z = pos[i, 2] + dt * nvz + (dp * pn if nax == 2 else 0.0)
+        z = pos[i, 2] + dt * nvz + dp * gnz
         flip_x = mx and x < 0.0
         flip_y = (my0 and y < 0.0) or (my1 and y > ly)
         if flip_x:
@@ -687,25 +699,25 @@ def _kick(pos, vel, mass, rho, sig, kind, acc, cont, vplate, damp, force, fp, ip
 
 
 @njit(cache=True, fastmath=True)
-def _sides(pos, kind, side, zc, fp, ip):
-    """Side of the plate of every real granular particle: +1 / -1 on the positive / negative
-    side of its mid-plane (the plane normal to axis ``nax`` through zc) where it lies over
-    the plate (|chord coordinate - plate_c| <= a, |y| <= b, or any y in the slab) within the
-    side reach (2h + t/2) of it, 0 elsewhere (the 2D side test)."""
+def _sides(pos, kind, side, fp, ip):
+    """Side of the plate of every real granular particle: +1 / -1 on the side its normal
+    points to / the other, where it lies over the plate (|(r - c) . u| <= a along the chord,
+    |y| <= b, or any y in the slab) within the side reach (2h + t/2) of the mid-plane, 0
+    elsewhere (the 2D side test)."""
     a = fp[F_PA]
     b = fp[F_PB]
-    pc = fp[F_PC]
     reach = fp[F_SREACH]
     slab = ip[I_SLAB] != 0
-    nax = ip[I_PAX]
-    cax = 2 - nax  # the chord's axis: x for a horizontal plate, z for a vertical one
+    cx, cz, ux, uz = fp[F_CX], fp[F_CZ], fp[F_UX], fp[F_UZ]
     for i in range(ip[I_NR]):
         if kind[i] != SOIL:
             continue
-        dz = pos[i, nax] - zc
+        rx = pos[i, 0] - cx
+        rz = pos[i, 2] - cz
+        dn = -rx * uz + rz * ux
         s = 0.0
-        if abs(pos[i, cax] - pc) <= a and (slab or abs(pos[i, 1]) <= b) and abs(dz) < reach:
-            s = 1.0 if dz > 0.0 else -1.0
+        if abs(rx * ux + rz * uz) <= a and (slab or abs(pos[i, 1]) <= b) and abs(dn) < reach:
+            s = 1.0 if dn > 0.0 else -1.0
         side[i] = s
 
 
@@ -723,29 +735,46 @@ def _max_disp2(pos, pb, kind, nr):
 
 
 @njit(cache=True)
-def steps3d(zc, vz, damp, forces, pos, vel, gv, rho, mass, sig, kind, nz, dcl, grd, side, src,
-            gs, go, boz, lidx, pb, cell_start, cell_idx, ss, sso, sb, sbo, fss, fsb, wsb, lg,
+def steps3d(pose, damp, forces, pos, vel, gv, rho, mass, sig, kind, nz, dcl, grd, side, src,
+            gs, go, bo, lidx, pb, cell_start, cell_idx, ss, sso, sb, sbo, fss, fsb, wsb, lg,
             acc, cont, bacc, psig, fp, ip):
-    """Advance len(zc) steps: per step the plate (markers ``lidx`` at z = zc[s] + boz, speed
-    vz[s]), its sides, the lists (rebuilt with the ghosts when a particle moved half the
+    """Advance len(pose) steps: per step the plate (its frame from ``pose[s]``, a
+    :data:`POSE` row; markers ``lidx`` at c + bo[:, 0] u + bo[:, 2] n, y = bo[:, 1], moving
+    rigidly), its sides, the lists (rebuilt with the ghosts when a particle moved half the
     skin), the boundary state, pass 1, the boundary state again, pass 2 with damping
     damp[s]; forces[s] = force of the real granular particles on the whole (real + ghost)
     plate. Returns (steps done, code): OK; UNSTABLE (ip bad: the particle); PAIRS_FULL or
     GHOSTS_FULL (the lists did not fit: the step was not done, enlarge and call again)."""
     nr = ip[I_NR]
-    nax = ip[I_PAX]
     thr = (0.5 * SKIN * fp[F_H]) ** 2
     f3 = np.zeros(3)
-    for s in range(zc.shape[0]):
+    for s in range(pose.shape[0]):
+        cx = pose[s, 0]
+        cz = pose[s, 1]
+        ux = math.cos(pose[s, 2])
+        uz = math.sin(pose[s, 2])
+        pvx = pose[s, 3]
+        pvz = pose[s, 4]
+        om = pose[s, 5]
+        fp[F_CX] = cx
+        fp[F_CZ] = cz
+        fp[F_UX] = ux
+        fp[F_UZ] = uz
+        fp[F_VX] = pvx
+        fp[F_VZ] = pvz
+        fp[F_OM] = om
         if ip[I_PLATE]:
             for kk in range(lidx.shape[0]):
                 w = lidx[kk]
-                pos[w, nax] = zc[s] + boz[kk]
-                vel[w, 0] = 0.0
+                x = cx + bo[kk, 0] * ux - bo[kk, 2] * uz
+                z = cz + bo[kk, 0] * uz + bo[kk, 2] * ux
+                pos[w, 0] = x
+                pos[w, 1] = bo[kk, 1]
+                pos[w, 2] = z
+                vel[w, 0] = pvx - om * (z - cz)
                 vel[w, 1] = 0.0
-                vel[w, 2] = 0.0
-                vel[w, nax] = vz[s]
-            _sides(pos, kind, side, zc[s], fp, ip)
+                vel[w, 2] = pvz + om * (x - cx)
+            _sides(pos, kind, side, fp, ip)
         if ip[I_BUILDS] == 0 or _max_disp2(pos, pb, kind, nr) > thr:
             ng = _make_ghosts(pos, kind, src, gs, go, fp, ip)
             if ng < 0:
@@ -769,23 +798,24 @@ def steps3d(zc, vz, damp, forces, pos, vel, gv, rho, mass, sig, kind, nz, dcl, g
         _accel_pass(pos, vel, rho, mass, sig, psig, kind, nz, dcl, grd, ss, sso, sb, sbo, fss,
                     fsb, acc, cont, fp, ip)
         f3[:] = 0.0
-        bad = _kick(pos, vel, mass, rho, sig, kind, acc, cont, vz[s], damp[s], f3, fp, ip)
+        bad = _kick(pos, vel, mass, rho, sig, kind, acc, cont, damp[s], f3, fp, ip)
         forces[s, 0] = f3[0]
         forces[s, 1] = f3[1]
         forces[s, 2] = f3[2]
         if bad >= 0:
             ip[I_BAD] = bad
             return s + 1, UNSTABLE
-    return zc.shape[0], OK
+    return pose.shape[0], OK
 
 
 # ------------------------------------------------------------------------------ the scene
 @dataclass
 class Scene3D:
     """Real particles of a 3D run (SI): positions (n, 3), kinds, masses, densities, stress
-    (n, 6), velocities (n, 3); plate markers (kind LEG): normal z (+1 top face, -1 bottom),
-    offset from the mid-plane along it (dcl), guard flag, body z offset from the plate
-    centre (``boz``, markers in the order of ``lidx``). ``mirror``: (x = 0, y = 0, y = ly)
+    (n, 6), velocities (n, 3); plate markers (kind LEG): the face they belong to (``nz``: +1
+    the face the plate's normal points out of, -1 the other), their offset from the
+    mid-plane along it (dcl), guard flag, body coordinates (``bo``: along the chord, y, along
+    the normal from the plate's centre; markers in the order of ``lidx``). ``mirror``: (x = 0, y = 0, y = ly)
     symmetry planes; ``box``: (x_lo, x_hi, y_hi, z_lo) outside which grains are lost;
     ``plate``: half length a, half width b, thickness t, slab (the plate spans all y)."""
 
@@ -800,7 +830,7 @@ class Scene3D:
     nz: np.ndarray
     dcl: np.ndarray
     grd: np.ndarray
-    boz: np.ndarray
+    bo: np.ndarray
     mirror: tuple = (True, True, False)
     ly: float = 0.0
     box: tuple = (-1e3, 1e3, 1e3, -1e3)
@@ -845,7 +875,7 @@ def plate_scene(medium: str | GranularMaterial = "3 mm glass CP", *, dx: float =
                 half_y: float | None = None, depth: float | None = None,
                 mirror_x: bool = True, z0: float | None = None,
                 with_plate: bool = True, normal: str = "z",
-                centre_depth: float = 0.03) -> Scene3D:
+                centre_depth: float = 0.03, pose: tuple | None = None) -> Scene3D:
     """The bed and plate of the 3D plate test, a quarter of it (symmetry planes x = 0, y = 0).
 
     The plate (``length`` along x, ``width`` along y, ``thickness``) is centred at x = y = 0
@@ -861,7 +891,9 @@ def plate_scene(medium: str | GranularMaterial = "3 mm glass CP", *, dx: float =
     ``normal`` "x": a vertical plate instead (the rig's beta = pi/2), its chord ``length``
     along z centred ``centre_depth`` below the surface, its normal along x, its mid-plane at
     x = ``z0`` (default 0), to be moved along x (:func:`plate_drag3d`); both halves of the
-    bed in x (``mirror_x`` must be False), the y = 0 symmetry plane kept."""
+    bed in x (``mirror_x`` must be False), the y = 0 symmetry plane kept. ``pose`` (cx, cz,
+    phi): any other start (centre, m; chord angle from +x towards +z, rad; see :data:`POSE`),
+    overriding ``normal``'s placement."""
     choice("normal", normal, ["x", "z"])
     if normal == "x" and mirror_x:
         raise InputError("mirror_x", "a vertical plate (normal x) moves along x: the bed needs "
@@ -931,25 +963,27 @@ def plate_scene(medium: str | GranularMaterial = "3 mm glass CP", *, dx: float =
             mk.append(np.stack([MX, MY, np.full_like(MX, sd * d), np.full_like(MX, sd),
                                 np.full_like(MX, d), guard_xy.astype(float)], -1))
     mk = np.concatenate(mk) if with_plate else np.zeros((0, 6))
-    if normal == "z":
+    if pose is not None:
+        cx0, cz0, phi0 = (float(v) for v in pose)
+        zc0 = cz0
+    elif normal == "z":
         zc0 = z0 if z0 is not None else 0.5 * t + 0.5 * dx
-        pc = 0.0
-        # granular particles inside the plate's body at the start (none when it starts above)
-        inside = ((np.abs(soil[:, 0]) <= a + 0.5 * dx)
-                  & ((slab is not None) | (soil[:, 1] <= b + 0.5 * dx))
-                  & (np.abs(soil[:, 2] - zc0) <= 0.5 * t + 0.5 * dx))
-        mpos = np.stack([mk[:, 0], mk[:, 1], zc0 + mk[:, 2]], -1)
-    else:  # body (chord, y, normal offset) -> world (x = x0 + offset, y, z = -depth + chord)
+        cx0, cz0, phi0 = 0.0, zc0, 0.0
+    else:  # body (chord, y, normal offset) -> world (x = x0 + offset, y, z = -depth - chord)
         positive("centre_depth", centre_depth, "m")
         if centre_depth + a > D:
             raise InputError("centre_depth", f"the plate's lower edge ({(centre_depth + a) * 100:g} "
                                              f"cm deep) must lie inside the bed ({D * 100:g} cm)")
         zc0 = z0 if z0 is not None else 0.0
-        pc = -centre_depth
-        inside = ((np.abs(soil[:, 2] - pc) <= a + 0.5 * dx)
-                  & ((slab is not None) | (soil[:, 1] <= b + 0.5 * dx))
-                  & (np.abs(soil[:, 0] - zc0) <= 0.5 * t + 0.5 * dx))
-        mpos = np.stack([zc0 + mk[:, 2], mk[:, 1], pc + mk[:, 0]], -1)
+        cx0, cz0, phi0 = zc0, -centre_depth, -0.5 * math.pi
+    ux, uz = math.cos(phi0), math.sin(phi0)
+    rxs, rzs = soil[:, 0] - cx0, soil[:, 2] - cz0
+    # granular particles inside the plate's body at the start (none when it starts above)
+    inside = ((np.abs(rxs * ux + rzs * uz) <= a + 0.5 * dx)
+              & ((slab is not None) | (soil[:, 1] <= b + 0.5 * dx))
+              & (np.abs(-rxs * uz + rzs * ux) <= 0.5 * t + 0.5 * dx))
+    mpos = np.stack([cx0 + mk[:, 0] * ux - mk[:, 2] * uz, mk[:, 1],
+                     cz0 + mk[:, 0] * uz + mk[:, 2] * ux], -1)
     if with_plate:
         soil = soil[~inside]
     ns, nw, nm = len(soil), len(walls), len(mk)
@@ -974,11 +1008,12 @@ def plate_scene(medium: str | GranularMaterial = "3 mm glass CP", *, dx: float =
     meta = {"scene": "plate3d", "dx_m": dx, "half_x_m": hx, "half_y_m": hy, "depth_m": D,
             "slab_layers": slab, "mirror_x": mirror_x, "plate_m": [length, width, thickness],
             "z0_m": zc0, "granular": ns, "wall": nw, "markers": nm, "wall_top_m": top,
-            "normal": normal, "centre_depth_m": centre_depth if normal == "x" else None}
+            "normal": normal, "centre_depth_m": centre_depth if normal == "x" else None,
+            "pose0": [cx0, cz0, phi0]}
     return Scene3D(pos, kind, mass, rho, sig, np.zeros((n, 3)), mat, cfg, nzv, dcl, grd,
-                   mk[:, 2].copy(), mirror=(mirror_x, True, slab is not None), ly=hy, box=box,
+                   np.ascontiguousarray(mk[:, :3]), mirror=(mirror_x, True, slab is not None), ly=hy, box=box,
                    plate={"a": a, "b": b, "t": t, "slab": slab is not None, "z0": zc0,
-                          "axis": 2 if normal == "z" else 0, "c": pc},
+                          "pose0": (cx0, cz0, phi0)},
                    depth=D, meta=meta)
 
 
@@ -1026,7 +1061,7 @@ class Solver3D:
         self.gs = np.ones((n, 3))
         self.go = np.zeros((n, 3))
         self.lidx = sc.lidx
-        self.boz = np.ascontiguousarray(sc.boz, dtype=np.float64)
+        self.bo = np.ascontiguousarray(sc.bo, dtype=np.float64)
         self.pb = np.full((nr, 3), np.inf)
         n_soil = int(np.sum(sc.kind == SOIL))
         n_bnd = nr - n_soil
@@ -1064,13 +1099,16 @@ class Solver3D:
                    ly=sc.ly, x_lo=lo[0], y_lo=lo[1], z_lo=lo[2], inv_cell=1.0 / cell,
                    rlist=self.rlist, x_hi_box=sc.box[1], y_hi_box=sc.box[2], z_lo_box=sc.box[3],
                    side_reach=2.0 * self.h + 0.5 * plate["t"], x_lo_box=sc.box[0],
-                   plate_c=plate.get("c", 0.0))
+                   p_cx=plate.get("pose0", (0.0, 0.0, 0.0))[0],
+                   p_cz=plate.get("pose0", (0.0, 0.0, 0.0))[1],
+                   p_ux=math.cos(plate.get("pose0", (0.0, 0.0, 0.0))[2]),
+                   p_uz=math.sin(plate.get("pose0", (0.0, 0.0, 0.0))[2]), p_vx=0.0, p_vz=0.0,
+                   p_om=0.0)
         self.fp = np.array([val[k] for k in FP], dtype=np.float64)
         ival = dict(nr=nr, ng=0, nss=0, nsb=0, ncx=ncell[0], ncy=ncell[1], ncz=ncell[2],
                     mirror_x=int(sc.mirror[0]), mirror_y0=int(sc.mirror[1]),
                     mirror_y1=int(sc.mirror[2]), slab=int(bool(plate["slab"])), builds=0,
-                    has_plate=int(len(self.lidx) > 0), bad=-1, lost=0,
-                    pax=int(plate.get("axis", 2)))
+                    has_plate=int(len(self.lidx) > 0), bad=-1, lost=0)
         self.ip = np.array([ival[k] for k in IP], dtype=np.int64)
         self.t = 0.0
         self.step_count = 0
@@ -1123,19 +1161,21 @@ class Solver3D:
             self.sbo = np.zeros(n + 1, np.int64)
         self.ip[I_BUILDS] = 0
 
-    def advance(self, zc, vz, damp) -> np.ndarray:
-        """len(zc) steps with the plate centre at zc[s], its speed vz[s], damping damp[s];
-        returns the force (N, 3) of the real granular particles on the plate per step."""
-        zc = np.ascontiguousarray(zc, dtype=np.float64)
-        vz = np.ascontiguousarray(vz, dtype=np.float64)
+    def advance(self, pose, damp) -> np.ndarray:
+        """len(pose) steps with the plate at pose[s] (a :data:`POSE` row: centre, chord angle,
+        centre velocity, angular velocity), damping damp[s]; returns the force (N, 3) of the
+        real granular particles on the plate per step."""
+        pose = np.ascontiguousarray(np.atleast_2d(pose), dtype=np.float64)
         damp = np.ascontiguousarray(damp, dtype=np.float64)
-        out = np.zeros((len(zc), 3))
+        if pose.shape != (len(damp), len(POSE)):
+            raise ValueError(f"pose must be ({len(damp)}, {len(POSE)}), got {pose.shape}")
+        out = np.zeros((len(pose), 3))
         done = 0
-        while done < len(zc):
-            d, code = steps3d(zc[done:], vz[done:], damp[done:], out[done:], self.pos,
+        while done < len(pose):
+            d, code = steps3d(pose[done:], damp[done:], out[done:], self.pos,
                               self.vel, self.gv, self.rho, self.mass, self.sig, self.kind,
                               self.nz, self.dcl, self.grd, self.side, self.src, self.gs,
-                              self.go, self.boz, self.lidx, self.pb, self.cell_start,
+                              self.go, self.bo, self.lidx, self.pb, self.cell_start,
                               self.cell_idx, self.ss, self.sso, self.sb, self.sbo, self.fss,
                               self.fsb, self.wsb,
                               self.lg, self.acc, self.cont, self.bacc, self.psig, self.fp,
@@ -1220,6 +1260,9 @@ def plate_push3d(medium: str | GranularMaterial = "3 mm glass CP", *, dx: float 
     tm = np.maximum(ts - s.settle_time, 0.0)
     zc = z0 - speed * tm
     vz = np.where(settling, 0.0, -speed)
+    pose = np.zeros((nsteps, len(POSE)))
+    pose[:, 1] = zc
+    pose[:, 4] = vz
     damp = np.where(settling, s.settle_damping, 0.0)
     forces = np.zeros((nsteps, 3))
     block = 2000
@@ -1227,7 +1270,7 @@ def plate_push3d(medium: str | GranularMaterial = "3 mm glass CP", *, dx: float 
     area = plate_area(sc)
     t = np.linspace(0.0, T, n_samples)
     for k in range(0, nsteps, block):
-        forces[k:k + block] = s.advance(zc[k:k + block], vz[k:k + block], damp[k:k + block])
+        forces[k:k + block] = s.advance(pose[k:k + block], damp[k:k + block])
         if progress is not None:
             progress(min(k + block, nsteps) * s.dt, nsteps * s.dt)
         if partial is not None:
@@ -1284,13 +1327,16 @@ def plate_drag3d(medium: str | GranularMaterial = "3 mm glass CP", *, dx: float 
     ts = np.arange(nsteps) * s.dt
     settling = ts < s.settle_time
     tm = np.maximum(ts - s.settle_time, 0.0)
-    xc = x0 + speed * tm
-    vx = np.where(settling, 0.0, speed)
+    pose = np.zeros((nsteps, len(POSE)))
+    pose[:, 0] = x0 + speed * tm
+    pose[:, 1] = -centre_depth
+    pose[:, 2] = -0.5 * math.pi
+    pose[:, 3] = np.where(settling, 0.0, speed)
     damp = np.where(settling, s.settle_damping, 0.0)
     forces = np.zeros((nsteps, 3))
     block = 2000
     for k in range(0, nsteps, block):
-        forces[k:k + block] = s.advance(xc[k:k + block], vx[k:k + block], damp[k:k + block])
+        forces[k:k + block] = s.advance(pose[k:k + block], damp[k:k + block])
         if progress is not None:
             progress(min(k + block, nsteps) * s.dt, nsteps * s.dt)
     fac = force_factor(sc)
@@ -1306,6 +1352,82 @@ def plate_drag3d(medium: str | GranularMaterial = "3 mm glass CP", *, dx: float 
             "time": t, "fx_N": fx, "fz_N": fz, "force_factor": fac, "area_m2": area,
             "steps": nsteps, "dt_s": s.dt, "particles": s.nr, "ghosts": int(s.ip[I_NG]),
             "lost": s.lost, "wall_s": time.perf_counter() - t_wall, "scene": sc.meta}
+
+
+def flat_leg3d(medium: str | GranularMaterial = "poppy LP", *, dx: float = 4e-3,
+               config: SPHConfig | None = None, slab: int | None = None,
+               half_y: float | None = None, omega: float = 1.1, hip_height: float = 2.0 * CM,
+               length: float = 7.62 * CM, width: float = PLATE_WIDTH,
+               thickness: float = PLATE_THICKNESS, pad: float = 0.06, n_theta: int = 271,
+               realization: int = 0, progress=None) -> dict:
+    """The flat leg of the rotating-leg test (:func:`terradyn.sph.suite.leg_vs_measured`:
+    hip ``hip_height`` above the surface, omega rad/s, -135..135 deg sampled at ``n_theta``
+    angles) in 3D: a rigid plate ``length`` x ``width`` x ``thickness`` hanging from the hip,
+    turning clockwise (theta = 0: straight down; the tip sweeps backwards and the bed pushes
+    the leg forwards). Half domain (symmetry plane y = 0); ``slab``: the plane-strain
+    configuration (the leg spans a slab between two symmetry planes: the 2D test in this
+    code). Only the part of the stroke where the leg is within 2h + dx of the bed is run (as
+    in 2D), after the bed has settled with the leg above it. Bed as the 2D test's
+    (:func:`terradyn.sph.api.bed_extent`: the leg's path below the surface plus ``pad``).
+    Returns theta (rad), Fx (thrust, + forward), Fz (lift, + up) in N, peaks, counts and
+    timings."""
+    positive("omega", omega, "rad/s")
+    positive("length", length, "m")
+    integer("n_theta", n_theta, 3)
+    in_range("hip_height", hip_height, -length, length, "m")
+    cfg = config or SPHConfig(dx=dx)
+    margin = 2.0 * cfg.h + cfg.dx
+    reach = math.sqrt(max(length ** 2 - max(hip_height, 0.0) ** 2, 0.0))
+    half_x = reach + pad
+    D = length - hip_height + pad
+    theta = np.linspace(-135 * math.pi / 180, 135 * math.pi / 180, n_theta)
+    # lowest point of the plate (its tip corner) against the surface
+    low = hip_height - length * np.cos(theta) - 0.5 * thickness * np.abs(np.sin(theta))
+    touch = np.flatnonzero(low < margin)
+    if len(touch) == 0:
+        raise InputError("hip_height", "the leg never reaches the bed")
+    i0, i1 = max(int(touch[0]) - 1, 0), min(int(touch[-1]) + 1, n_theta - 1)
+    th0 = float(theta[i0]) + 1e-8 * int(realization)
+
+    def pose_at(th):
+        ux, uz = -np.sin(th), -np.cos(th)  # hip -> tip
+        cx, cz = 0.5 * length * ux, hip_height + 0.5 * length * uz
+        om = -omega  # d phi / dt: clockwise
+        return np.stack([cx, cz, np.arctan2(uz, ux), -om * (cz - hip_height), om * cx,
+                         np.full_like(cx, om)], -1)
+
+    p0 = pose_at(np.array([th0]))[0]
+    sc = plate_scene(medium, config=cfg, length=length, width=width, thickness=thickness,
+                     slab=slab, half_x=half_x, half_y=half_y, depth=D, mirror_x=False,
+                     pose=(p0[0], p0[1], p0[2]))
+    t_wall = time.perf_counter()
+    s = Solver3D(sc, plate_speed=omega * length)
+    T = (float(theta[i1]) - th0) / omega
+    nsteps = int(math.ceil((s.settle_time + T) / s.dt))
+    ts = np.arange(nsteps) * s.dt
+    settling = ts < s.settle_time
+    th = th0 + omega * np.maximum(ts - s.settle_time, 0.0)
+    pose = pose_at(th)
+    pose[settling, 3:] = 0.0  # the leg waits above the bed while it settles
+    damp = np.where(settling, s.settle_damping, 0.0)
+    forces = np.zeros((nsteps, 3))
+    block = 2000
+    for k in range(0, nsteps, block):
+        forces[k:k + block] = s.advance(pose[k:k + block], damp[k:k + block])
+        if progress is not None:
+            progress(min(k + block, nsteps) * s.dt, nsteps * s.dt)
+    fac = force_factor(sc)
+    keep = ~settling
+    Fx = np.zeros(n_theta)
+    Fz = np.zeros(n_theta)
+    win = slice(i0, i1 + 1)
+    Fx[win] = np.interp(theta[win], th[keep], forces[keep, 0]) * fac
+    Fz[win] = np.interp(theta[win], th[keep], forces[keep, 2]) * fac
+    return {"theta": theta, "Fx": Fx, "Fz": Fz, "peak_lift": float(Fz.max()),
+            "peak_thrust": float(Fx.max()), "force_factor": fac, "steps": nsteps,
+            "dt_s": s.dt, "particles": s.nr, "ghosts": int(s.ip[I_NG]), "lost": s.lost,
+            "wall_s": time.perf_counter() - t_wall, "scene": sc.meta,
+            "window_deg": [float(theta[i0] * 180 / math.pi), float(theta[i1] * 180 / math.pi)]}
 
 
 def shape_factor(length: float, width: float, friction: float) -> float:
