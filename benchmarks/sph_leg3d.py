@@ -44,6 +44,7 @@ def main() -> None:
     ap.add_argument("--dx-mm", type=float, default=4.0)
     ap.add_argument("--omega", type=float, default=1.1)
     ap.add_argument("--out", type=Path, default=OUT)
+    ap.add_argument("--figure", type=Path, help="draw the curves of the medium of the first point (PNG)")
     a = ap.parse_args()
     res = (json.loads(a.out.read_text()) if a.out.exists()
            else {"machine": platform.processor() or platform.machine(), "points": []})
@@ -80,6 +81,17 @@ def main() -> None:
         atomic_write_text(a.out, json.dumps(res, indent=1))
         print(json.dumps({k: v for k, v in p.items() if k not in ("theta_deg", "Fx_N", "Fz_N")}),
               flush=True)
+    if a.figure:
+        from terradyn.sph.plots import leg3d
+
+        medium = a.points[0].rsplit(":", 1)[0]
+        pts = [p for p in res["points"] if p["medium"] == medium and p["dx_mm"] == a.dx_mm
+               and p["omega_rad_s"] == a.omega]
+        e = exp[(exp.medium == medium) & (exp.leg == "flat")]
+        meas = {c: (e[e.force == c].theta_deg.values, e[e.force == c].force_N.values)
+                for c in ("Fz", "Fx")}
+        leg3d(pts, meas, a.figure, title=f"flat leg, {medium}, omega = {a.omega:g} rad/s, "
+                                         f"{a.dx_mm:g} mm particles")
 
 
 if __name__ == "__main__":

@@ -211,3 +211,18 @@ def test_flat_leg_3d_bad_requests_are_one_line_errors():
         P.flat_leg3d("poppy LP", omega=0.0)
     with pytest.raises(InputError, match="hip_height"):
         P.flat_leg3d("poppy LP", hip_height=0.2)
+
+
+def test_leg3d_figure_labels_what_it_draws(tmp_path):
+    from terradyn.sph.plots import leg3d
+
+    th = np.linspace(-135, 135, 11)
+    pts = [{"kind": k, "theta_deg": th, "Fx_N": np.cos(th * DEG), "Fz_N": np.sin(th * DEG)}
+           for k in ("slab", "finite")]
+    fig = leg3d(pts, {"Fz": (th, 0.5 * th / 135), "Fx": (th, 0 * th)})
+    labels = [t.get_text() for t in fig.legends[0].get_texts()]
+    assert labels == ["SPH 3D, plane-strain slab", "SPH 3D, 2.54 cm wide leg",
+                      "measured (Li 2013 Fig. S5)"]
+    assert [a.get_ylabel() for a in fig.axes] == ["lift $F_z$ (N)", "thrust $F_x$ (N)"]
+    leg3d(pts, {"Fz": (th, th), "Fx": (th, th)}, tmp_path / "f.png")
+    assert (tmp_path / "f.png").stat().st_size > 1000

@@ -123,3 +123,28 @@ def rig_maps(r: dict, path=None, title: str = ""):
         if title:
             fig.suptitle(title, fontsize=9)
         return _save(fig, path)
+
+
+def leg3d(points: list[dict], measured: dict, path=None, title: str = ""):
+    """The flat leg in 3D (``benchmarks/sph_leg3d.py`` points: ``kind`` slab or finite,
+    ``theta_deg``, ``Fx_N``, ``Fz_N``) beside the measured curve (``measured``: {"Fz": (theta
+    deg, N), "Fx": (...)}), lift and thrust against the leg angle."""
+    styles = {"finite": {"color": "#d1495b", "label": "SPH 3D, 2.54 cm wide leg"},
+              "slab": {"color": "#30638e", "ls": "--", "label": "SPH 3D, plane-strain slab"}}
+    with plt.rc_context(STYLE):
+        fig, axes = plt.subplots(1, 2, figsize=(7.0, 3.2), sharex=True, layout="constrained")
+        for ax, comp, what in ((axes[0], "Fz", "lift $F_z$ (N)"), (axes[1], "Fx", "thrust $F_x$ (N)")):
+            for p in points:
+                st = dict(styles[p["kind"]])
+                ax.plot(p["theta_deg"], p[f"{comp}_N"], **st)
+            th, y = measured[comp]
+            ax.plot(th, y, ".", color="0.45", ms=2.5, label="measured (Li 2013 Fig. S5)")
+            ax.axhline(0, color="0.8", lw=0.6)
+            ax.set_xlabel(r"leg angle $\theta$ (deg)")
+            ax.set_ylabel(what)
+            ax.set_xlim(-135, 135)
+        fig.legend(*axes[0].get_legend_handles_labels(), frameon=False, fontsize=7.5,
+                   loc="outside lower center", ncol=3)
+        if title:
+            fig.suptitle(title, fontsize=9)
+        return _save(fig, path)
