@@ -38,6 +38,72 @@ DEFAULT = ["poppy LP:slab", "poppy LP:finite"]
 SLAB = 6
 
 
+def score(p: dict, exp) -> dict:
+    """RMS differences (N) of a point's curves from the measured flat-leg curve over the
+    measured angles, and RFT's (Table S5 grid, linear), as the 2D validation scores them."""
+    from terradyn.media import stress_model
+    from terradyn.motion import Rotation
+    from terradyn.rft import simulate
+    from terradyn.sph.suite import make_leg
+    from terradyn.units import CM
+
+    e = exp[(exp.medium == p["medium"]) & (exp.leg == "flat")]
+    if not len(e):
+        return {}
+    rft = simulate(make_leg("flat"), Rotation(omega=p["omega_rad_s"], hip_height=2 * CM,
+                                              theta_start=-135 * DEG, theta_end=135 * DEG,
+                                              n_theta=271),
+                   stress_model(p["medium"], "table", interp="linear"))
+    out = {}
+    for comp, name in (("Fz", "lift"), ("Fx", "thrust")):
+        q = e[e.force == comp]
+        th, y = q.theta_deg.values, q.force_N.values
+        sph = np.interp(th, p["theta_deg"], p[f"{comp}_N"])
+        r = np.interp(th, rft.theta.values, rft[comp].values)
+        out[f"rms_{name}_N"] = round(float(np.sqrt(np.mean((sph - y) ** 2))), 4)
+        out[f"rms_{name}_rft_N"] = round(float(np.sqrt(np.mean((r - y) ** 2))), 4)
+    return out
+
+
+LI2013_S5 = ("C. Li, T. Zhang, D. I. Goldman, A terradynamics of legged locomotion on granular "
+             "media, Science 339:1408-1412 (2013), doi:10.1126/science.1229163, Fig. S5 (measured)")
+
+
+def checks(points: list[dict]) -> list[dict]:
+    """The finite (3D) points as rows of ``terradyn sph validate``'s leg checks (peaks within
+    15 % of the measured ones, RMS no larger than RFT's), labelled 3D, for the report."""
+    rows = []
+    for p in points:
+        if p["kind"] != "finite" or p.get("measured_peak_lift_N") is None:
+            continue
+        tag = f"flat leg, {p['medium']} (3D, plate3d, {p['dx_mm']:g} mm)"
+        for name in ("lift", "thrust"):
+            ours, ref = p[f"peak_{name}_N"], p[f"measured_peak_{name}_N"]
+            rows.append({"scene": "legs", "quantity": f"peak {name}, {tag}", "ours": ours,
+                         "reference": ref, "unit": "N", "source": LI2013_S5,
+                         "relative_difference": round(ours / ref - 1, 4),
+                         "tolerance": "within 15 %",
+                         "verdict": "pass" if abs(ours / ref - 1) <= 0.15 else "fail"})
+            if f"rms_{name}_N" in p:
+                a, b = p[f"rms_{name}_N"], p[f"rms_{name}_rft_N"]
+                rows.append({"scene": "legs", "quantity": f"RMS {name} - measured, {tag}",
+                             "ours": a, "reference": b, "unit": "N",
+                             "source": "RFT (Table S5 grid, linear) against the same curve",
+                             "relative_difference": round(a / b - 1, 4), "tolerance": "<= RFT's",
+                             "verdict": "pass" if a <= b else "fail"})
+    return rows
+
+
+def write_checks(res: dict, path: Path) -> None:
+    rows = checks(res["points"])
+    if rows:
+        atomic_write_text(path, json.dumps({"checks": rows, "details": {}, "settings": {
+            "scenes": ["legs"], "model": "3D (terradyn.sph.plate3d.flat_leg3d)",
+            "dx_mm": sorted({q["dx_mm"] for q in res["points"] if q["kind"] == "finite"})[0],
+            "dp_match": "plane-strain", "omega_rad_s": 1.1,
+            "command": "python benchmarks/sph_leg3d.py"}}, indent=1))
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--points", nargs="+", default=DEFAULT, help="MEDIUM:KIND, KIND slab|finite")
@@ -45,6 +111,8 @@ def main() -> None:
     ap.add_argument("--omega", type=float, default=1.1)
     ap.add_argument("--out", type=Path, default=OUT)
     ap.add_argument("--figure", type=Path, help="draw the curves of the medium of the first point (PNG)")
+    ap.add_argument("--checks", type=Path, default=RES / "sph_validate_legs3d.json",
+                    help="the finite points as validation checks (the report reads them)")
     a = ap.parse_args()
     res = (json.loads(a.out.read_text()) if a.out.exists()
            else {"machine": platform.processor() or platform.machine(), "points": []})
@@ -77,10 +145,13 @@ def main() -> None:
              "Fx_N": np.round(r["Fx"], 4).tolist(), "Fz_N": np.round(r["Fz"], 4).tolist(),
              "window_deg": r["window_deg"], "particles": r["particles"], "steps": r["steps"],
              "lost": r["lost"], "wall_s": round(time.perf_counter() - t0, 1)}
+        p.update(score(p, exp))
         res["points"].append(p)
         atomic_write_text(a.out, json.dumps(res, indent=1))
         print(json.dumps({k: v for k, v in p.items() if k not in ("theta_deg", "Fx_N", "Fz_N")}),
               flush=True)
+    if a.out == OUT:  # the shipped study: its checks go beside the 2D validation's
+        write_checks(res, a.checks)
     if a.figure:
         from terradyn.sph.plots import leg3d
 
