@@ -174,7 +174,7 @@ def test_vertical_plate_pushed_horizontally_is_resisted_and_at_rest_feels_no_net
     r = P.plate_drag3d("poppy LP", config=cfg, half_x=0.05, half_y=0.03, centre_depth=0.025,
                        depth=0.06, travel=0.008, speed=0.1, n_samples=9)
     fx = r["fx_N"]
-    assert r["scene"]["normal"] == "x" and r["force_factor"] == 2.0
+    assert r["scene"]["pose0"][2] == pytest.approx(-0.5 * math.pi) and r["force_factor"] == 2.0
     # pushed along +x, the bed pushes back: alpha_x (against the motion) is positive ...
     assert r["alpha_x"] > 0 and fx[-1] < 0
     # ... and grows from the settled state, where the two faces' pressures balance
@@ -183,15 +183,15 @@ def test_vertical_plate_pushed_horizontally_is_resisted_and_at_rest_feels_no_net
 
 
 def test_vertical_plate_bad_requests_are_one_line_errors():
-    with pytest.raises(InputError, match="normal"):
-        P.plate_scene("poppy LP", dx=6e-3, normal="y")
-    with pytest.raises(InputError, match="mirror_x"):
-        P.plate_scene("poppy LP", dx=6e-3, normal="x")
-    with pytest.raises(InputError, match="centre_depth"):
-        P.plate_scene("poppy LP", dx=6e-3, normal="x", mirror_x=False, depth=0.04,
-                      centre_depth=0.03)
+    with pytest.raises(InputError, match="mirror_x"):  # off x = 0: needs both halves
+        P.plate_scene("poppy LP", dx=6e-3, pose=(0.0, -0.03, -0.5 * math.pi))
+    with pytest.raises(InputError, match="pose"):  # below the floor
+        P.plate_scene("poppy LP", dx=6e-3, mirror_x=False, depth=0.04,
+                      pose=(0.0, -0.03, -0.5 * math.pi))
     with pytest.raises(InputError, match="travel"):
         P.plate_drag3d("poppy LP", travel=0.0)
+    with pytest.raises(InputError, match="centre_depth"):
+        P.plate_drag3d("poppy LP", centre_depth=-0.01)
 
 
 def test_flat_leg_in_3d_is_pushed_forward_and_up_as_it_sweeps_back_through_the_bed():

@@ -48,7 +48,7 @@ from dataclasses import dataclass, field
 import numpy as np
 from numba import njit
 
-from ..errors import InputError, check_memory, choice, in_range, integer, positive
+from ..errors import InputError, check_memory, in_range, integer, positive
 from ..units import CM, G
 from .calibration import PLATE_TEST
 from .materials import GranularMaterial, material as _material
@@ -874,8 +874,7 @@ def plate_scene(medium: str | GranularMaterial = "3 mm glass CP", *, dx: float =
                 slab: int | None = None, half_x: float | None = None,
                 half_y: float | None = None, depth: float | None = None,
                 mirror_x: bool = True, z0: float | None = None,
-                with_plate: bool = True, normal: str = "z",
-                centre_depth: float = 0.03, pose: tuple | None = None) -> Scene3D:
+                with_plate: bool = True, pose: tuple | None = None) -> Scene3D:
     """The bed and plate of the 3D plate test, a quarter of it (symmetry planes x = 0, y = 0).
 
     The plate (``length`` along x, ``width`` along y, ``thickness``) is centred at x = y = 0
@@ -888,16 +887,11 @@ def plate_scene(medium: str | GranularMaterial = "3 mm glass CP", *, dx: float =
     the plate spanning it (the 2D test in 3D). ``mirror_x`` False: both halves in x, with a
     wall at -half_x (a check of the x mirror). ``with_plate`` False: the bed alone.
 
-    ``normal`` "x": a vertical plate instead (the rig's beta = pi/2), its chord ``length``
-    along z centred ``centre_depth`` below the surface, its normal along x, its mid-plane at
-    x = ``z0`` (default 0), to be moved along x (:func:`plate_drag3d`); both halves of the
-    bed in x (``mirror_x`` must be False), the y = 0 symmetry plane kept. ``pose`` (cx, cz,
-    phi): any other start (centre, m; chord angle from +x towards +z, rad; see :data:`POSE`),
-    overriding ``normal``'s placement."""
-    choice("normal", normal, ["x", "z"])
-    if normal == "x" and mirror_x:
-        raise InputError("mirror_x", "a vertical plate (normal x) moves along x: the bed needs "
-                                     "both halves in x (mirror_x=False)")
+    ``pose`` (cx, cz, phi): the plate's start in any other placement (centre, m; chord angle
+    from +x towards +z, rad; see :data:`POSE`), e.g. the vertical plate of
+    :func:`plate_drag3d` or the leg of :func:`flat_leg3d`; it must lie above the floor, and a
+    plate not centred on x = 0 horizontally needs both halves of the bed (``mirror_x``
+    False)."""
     mat = _material(medium)
     cfg = config or SPHConfig(dx=dx)
     dx = cfg.dx
@@ -963,19 +957,17 @@ def plate_scene(medium: str | GranularMaterial = "3 mm glass CP", *, dx: float =
             mk.append(np.stack([MX, MY, np.full_like(MX, sd * d), np.full_like(MX, sd),
                                 np.full_like(MX, d), guard_xy.astype(float)], -1))
     mk = np.concatenate(mk) if with_plate else np.zeros((0, 6))
-    if pose is not None:
-        cx0, cz0, phi0 = (float(v) for v in pose)
-        zc0 = cz0
-    elif normal == "z":
-        zc0 = z0 if z0 is not None else 0.5 * t + 0.5 * dx
-        cx0, cz0, phi0 = 0.0, zc0, 0.0
-    else:  # body (chord, y, normal offset) -> world (x = x0 + offset, y, z = -depth - chord)
-        positive("centre_depth", centre_depth, "m")
-        if centre_depth + a > D:
-            raise InputError("centre_depth", f"the plate's lower edge ({(centre_depth + a) * 100:g} "
-                                             f"cm deep) must lie inside the bed ({D * 100:g} cm)")
-        zc0 = z0 if z0 is not None else 0.0
-        cx0, cz0, phi0 = zc0, -centre_depth, -0.5 * math.pi
+    if pose is None:  # the plate test: horizontal, over x = 0, dx/2 above the grains
+        pose = (0.0, z0 if z0 is not None else 0.5 * t + 0.5 * dx, 0.0)
+    cx0, cz0, phi0 = (float(v) for v in pose)
+    zc0 = cz0
+    if mirror_x and (cx0 != 0.0 or math.sin(phi0) != 0.0):
+        raise InputError("mirror_x", "a plate not centred horizontally on x = 0 needs both "
+                                     "halves of the bed (mirror_x=False)")
+    lowest = cz0 - a * abs(math.sin(phi0)) - 0.5 * t * abs(math.cos(phi0))
+    if lowest <= -D:
+        raise InputError("pose", f"the plate's lowest point ({-lowest * 100:g} cm deep) must lie "
+                                 f"inside the bed ({D * 100:g} cm deep)")
     ux, uz = math.cos(phi0), math.sin(phi0)
     rxs, rzs = soil[:, 0] - cx0, soil[:, 2] - cz0
     # granular particles inside the plate's body at the start (none when it starts above)
@@ -1008,7 +1000,6 @@ def plate_scene(medium: str | GranularMaterial = "3 mm glass CP", *, dx: float =
     meta = {"scene": "plate3d", "dx_m": dx, "half_x_m": hx, "half_y_m": hy, "depth_m": D,
             "slab_layers": slab, "mirror_x": mirror_x, "plate_m": [length, width, thickness],
             "z0_m": zc0, "granular": ns, "wall": nw, "markers": nm, "wall_top_m": top,
-            "normal": normal, "centre_depth_m": centre_depth if normal == "x" else None,
             "pose0": [cx0, cz0, phi0]}
     return Scene3D(pos, kind, mass, rho, sig, np.zeros((n, 3)), mat, cfg, nzv, dcl, grd,
                    np.ascontiguousarray(mk[:, :3]), mirror=(mirror_x, True, slab is not None), ly=hy, box=box,
@@ -1089,6 +1080,7 @@ class Solver3D:
         self.cell_start = np.zeros(int(np.prod(ncell)) + 1, np.int64)
         self.cell_idx = np.zeros(n, np.int64)
         plate = sc.plate or {"a": 0.0, "b": 0.0, "t": 0.0, "slab": False}
+        pose0 = plate.get("pose0", (0.0, 0.0, 0.0))  # overwritten by every step's pose
         gap = (0.25 if cfg.contact_gap is None else cfg.contact_gap) * cfg.dx
         val = dict(h=self.h, dt=self.dt, shear_mod=mat.shear_modulus, bulk_mod=mat.bulk_modulus,
                    alpha_phi=mat.alpha_phi, k_c=mat.k_c, rho_min=0.9 * mat.density,
@@ -1099,11 +1091,8 @@ class Solver3D:
                    ly=sc.ly, x_lo=lo[0], y_lo=lo[1], z_lo=lo[2], inv_cell=1.0 / cell,
                    rlist=self.rlist, x_hi_box=sc.box[1], y_hi_box=sc.box[2], z_lo_box=sc.box[3],
                    side_reach=2.0 * self.h + 0.5 * plate["t"], x_lo_box=sc.box[0],
-                   p_cx=plate.get("pose0", (0.0, 0.0, 0.0))[0],
-                   p_cz=plate.get("pose0", (0.0, 0.0, 0.0))[1],
-                   p_ux=math.cos(plate.get("pose0", (0.0, 0.0, 0.0))[2]),
-                   p_uz=math.sin(plate.get("pose0", (0.0, 0.0, 0.0))[2]), p_vx=0.0, p_vz=0.0,
-                   p_om=0.0)
+                   p_cx=pose0[0], p_cz=pose0[1], p_ux=math.cos(pose0[2]),
+                   p_uz=math.sin(pose0[2]), p_vx=0.0, p_vz=0.0, p_om=0.0)
         self.fp = np.array([val[k] for k in FP], dtype=np.float64)
         ival = dict(nr=nr, ng=0, nss=0, nsb=0, ncx=ncell[0], ncy=ncell[1], ncz=ncell[2],
                     mirror_x=int(sc.mirror[0]), mirror_y0=int(sc.mirror[1]),
@@ -1228,6 +1217,30 @@ def fit_alpha(depth: np.ndarray, stress: np.ndarray, fit_from: float) -> dict:
             "slope": float(slope), "intercept_Pa": float(icpt)}
 
 
+def _schedule(s: Solver3D, duration: float):
+    """The steps of a run: damped settling (``s.settle_time``) then ``duration`` s of motion.
+    Returns (times, settling mask, time since the motion began, damping per step)."""
+    nsteps = int(math.ceil((s.settle_time + duration) / s.dt))
+    ts = np.arange(nsteps) * s.dt
+    settling = ts < s.settle_time
+    return ts, settling, np.maximum(ts - s.settle_time, 0.0), np.where(settling, s.settle_damping, 0.0)
+
+
+def _run_blocks(s: Solver3D, pose, damp, progress=None, after=None, block: int = 2000):
+    """Advance ``s`` through the per-step ``pose`` and ``damp`` in blocks of steps; returns
+    the force per step (N, 3). ``progress(done_s, total_s)`` and ``after(steps_done,
+    forces)`` after every block."""
+    n = len(damp)
+    forces = np.zeros((n, 3))
+    for k in range(0, n, block):
+        forces[k:k + block] = s.advance(pose[k:k + block], damp[k:k + block])
+        if progress is not None:
+            progress(min(k + block, n) * s.dt, n * s.dt)
+        if after is not None:
+            after(min(k + block, n), forces)
+    return forces
+
+
 def plate_push3d(medium: str | GranularMaterial = "3 mm glass CP", *, dx: float = 4e-3,
                  config: SPHConfig | None = None, slab: int | None = None,
                  half_x: float | None = None, half_y: float | None = None,
@@ -1254,33 +1267,24 @@ def plate_push3d(medium: str | GranularMaterial = "3 mm glass CP", *, dx: float 
     t_wall = time.perf_counter()
     s = Solver3D(sc, plate_speed=speed)
     T = (push_depth + z0) / speed
-    nsteps = int(math.ceil((s.settle_time + T) / s.dt))
-    ts = np.arange(nsteps) * s.dt
-    settling = ts < s.settle_time
-    tm = np.maximum(ts - s.settle_time, 0.0)
-    zc = z0 - speed * tm
-    vz = np.where(settling, 0.0, -speed)
+    ts, settling, tm, damp = _schedule(s, T)
+    nsteps = len(ts)
     pose = np.zeros((nsteps, len(POSE)))
-    pose[:, 1] = zc
-    pose[:, 4] = vz
-    damp = np.where(settling, s.settle_damping, 0.0)
-    forces = np.zeros((nsteps, 3))
-    block = 2000
+    pose[:, 1] = z0 - speed * tm
+    pose[:, 4] = np.where(settling, 0.0, -speed)
     fac = force_factor(sc)
     area = plate_area(sc)
     t = np.linspace(0.0, T, n_samples)
-    for k in range(0, nsteps, block):
-        forces[k:k + block] = s.advance(pose[k:k + block], damp[k:k + block])
-        if progress is not None:
-            progress(min(k + block, nsteps) * s.dt, nsteps * s.dt)
-        if partial is not None:
-            upto = min(k + block, nsteps)
-            keep = ~settling[:upto]
-            if keep.sum() > 1:
-                t_now = ts[upto - 1] - s.settle_time
-                tt = t[t <= t_now]
-                partial(-(z0 - speed * tt), np.interp(tt, ts[:upto][keep] - s.settle_time,
-                                                      forces[:upto][keep, 2]) * fac / area)
+
+    def after(upto, forces):
+        keep = ~settling[:upto]
+        if keep.sum() > 1:
+            t_now = ts[upto - 1] - s.settle_time
+            tt = t[t <= t_now]
+            partial(-(z0 - speed * tt), np.interp(tt, ts[:upto][keep] - s.settle_time,
+                                                  forces[:upto][keep, 2]) * fac / area)
+
+    forces = _run_blocks(s, pose, damp, progress, after if partial is not None else None)
     keep = ~settling
     t_rec = ts[keep] - s.settle_time
     fz = np.interp(t, t_rec, forces[keep, 2]) * fac
@@ -1318,27 +1322,21 @@ def plate_drag3d(medium: str | GranularMaterial = "3 mm glass CP", *, dx: float 
     cfg = config or SPHConfig(dx=dx)
     D = depth if depth is not None else centre_depth + 0.5 * travel + 0.05
     x0 = -0.5 * travel + 1e-8 * int(realization)
+    positive("centre_depth", centre_depth, "m")
+    # vertical (chord angle -pi/2: the normal along +x), its mid-plane at x0
     sc = plate_scene(medium, config=cfg, slab=slab, half_x=half_x, half_y=half_y, depth=D,
-                     mirror_x=False, z0=x0, normal="x", centre_depth=centre_depth)
+                     mirror_x=False, pose=(x0, -centre_depth, -0.5 * math.pi))
     t_wall = time.perf_counter()
     s = Solver3D(sc, plate_speed=speed)
     T = travel / speed
-    nsteps = int(math.ceil((s.settle_time + T) / s.dt))
-    ts = np.arange(nsteps) * s.dt
-    settling = ts < s.settle_time
-    tm = np.maximum(ts - s.settle_time, 0.0)
+    ts, settling, tm, damp = _schedule(s, T)
+    nsteps = len(ts)
     pose = np.zeros((nsteps, len(POSE)))
     pose[:, 0] = x0 + speed * tm
     pose[:, 1] = -centre_depth
     pose[:, 2] = -0.5 * math.pi
     pose[:, 3] = np.where(settling, 0.0, speed)
-    damp = np.where(settling, s.settle_damping, 0.0)
-    forces = np.zeros((nsteps, 3))
-    block = 2000
-    for k in range(0, nsteps, block):
-        forces[k:k + block] = s.advance(pose[k:k + block], damp[k:k + block])
-        if progress is not None:
-            progress(min(k + block, nsteps) * s.dt, nsteps * s.dt)
+    forces = _run_blocks(s, pose, damp, progress)
     fac = force_factor(sc)
     area = plate_area(sc)
     keep = ~settling
@@ -1403,19 +1401,12 @@ def flat_leg3d(medium: str | GranularMaterial = "poppy LP", *, dx: float = 4e-3,
     t_wall = time.perf_counter()
     s = Solver3D(sc, plate_speed=omega * length)
     T = (float(theta[i1]) - th0) / omega
-    nsteps = int(math.ceil((s.settle_time + T) / s.dt))
-    ts = np.arange(nsteps) * s.dt
-    settling = ts < s.settle_time
-    th = th0 + omega * np.maximum(ts - s.settle_time, 0.0)
+    ts, settling, tm, damp = _schedule(s, T)
+    nsteps = len(ts)
+    th = th0 + omega * tm
     pose = pose_at(th)
     pose[settling, 3:] = 0.0  # the leg waits above the bed while it settles
-    damp = np.where(settling, s.settle_damping, 0.0)
-    forces = np.zeros((nsteps, 3))
-    block = 2000
-    for k in range(0, nsteps, block):
-        forces[k:k + block] = s.advance(pose[k:k + block], damp[k:k + block])
-        if progress is not None:
-            progress(min(k + block, nsteps) * s.dt, nsteps * s.dt)
+    forces = _run_blocks(s, pose, damp, progress)
     fac = force_factor(sc)
     keep = ~settling
     Fx = np.zeros(n_theta)

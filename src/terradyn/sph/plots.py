@@ -75,16 +75,17 @@ def leg_comparison(sph, rft, path=None, title: str = ""):
                   styles={"SPH": {"color": "#d1495b"}, "RFT": {"color": "k", "ls": "--"}})
 
 
-def leg_vs_measured(r: dict, path=None, title: str = ""):
-    """One leg: SPH, RFT (measured grid, linear) and Li 2013 Fig. S5's measured curve, lift
-    and thrust against the leg angle (:func:`terradyn.sph.suite.leg_vs_measured`)."""
+def _lift_thrust(curves, measured, path=None, title: str = ""):
+    """Lift and thrust against the leg angle: ``curves`` [(theta deg, {"Fz": N, "Fx": N},
+    plot keywords with the label)], ``measured`` {"Fz": (theta deg, N), "Fx": (...)} (Li 2013
+    Fig. S5, drawn as dots)."""
     with plt.rc_context(STYLE):
         fig, axes = plt.subplots(1, 2, figsize=(7.0, 3.2), sharex=True, layout="constrained")
         for ax, comp, what in ((axes[0], "Fz", "lift $F_z$ (N)"), (axes[1], "Fx", "thrust $F_x$ (N)")):
-            ax.plot(r["sph"].theta, r["sph"][comp], color="#d1495b", label="SPH")
-            ax.plot(r["rft"].theta, r["rft"][comp], "k--", label="RFT (Table S5, linear)")
-            ax.plot(r[comp]["theta"], r[comp]["measured"], ".", color="0.45", ms=2.5,
-                    label="measured (Li 2013 Fig. S5)")
+            for th, f, kw in curves:
+                ax.plot(th, f[comp], **kw)
+            th, y = measured[comp]
+            ax.plot(th, y, ".", color="0.45", ms=2.5, label="measured (Li 2013 Fig. S5)")
             ax.axhline(0, color="0.8", lw=0.6)
             ax.set_xlabel(r"leg angle $\theta$ (deg)")
             ax.set_ylabel(what)
@@ -94,6 +95,15 @@ def leg_vs_measured(r: dict, path=None, title: str = ""):
         if title:
             fig.suptitle(title, fontsize=9)
         return _save(fig, path)
+
+
+def leg_vs_measured(r: dict, path=None, title: str = ""):
+    """One leg: SPH, RFT (measured grid, linear) and Li 2013 Fig. S5's measured curve, lift
+    and thrust against the leg angle (:func:`terradyn.sph.suite.leg_vs_measured`)."""
+    curves = [(r["sph"].theta, r["sph"], {"color": "#d1495b", "label": "SPH"}),
+              (r["rft"].theta, r["rft"], {"color": "k", "ls": "--", "label": "RFT (Table S5, linear)"})]
+    return _lift_thrust(curves, {c: (r[c]["theta"], r[c]["measured"]) for c in ("Fz", "Fx")},
+                        path, title)
 
 
 def rig_maps(r: dict, path=None, title: str = ""):
@@ -131,20 +141,5 @@ def leg3d(points: list[dict], measured: dict, path=None, title: str = ""):
     deg, N), "Fx": (...)}), lift and thrust against the leg angle."""
     styles = {"finite": {"color": "#d1495b", "label": "SPH 3D, 2.54 cm wide leg"},
               "slab": {"color": "#30638e", "ls": "--", "label": "SPH 3D, plane-strain slab"}}
-    with plt.rc_context(STYLE):
-        fig, axes = plt.subplots(1, 2, figsize=(7.0, 3.2), sharex=True, layout="constrained")
-        for ax, comp, what in ((axes[0], "Fz", "lift $F_z$ (N)"), (axes[1], "Fx", "thrust $F_x$ (N)")):
-            for p in points:
-                st = dict(styles[p["kind"]])
-                ax.plot(p["theta_deg"], p[f"{comp}_N"], **st)
-            th, y = measured[comp]
-            ax.plot(th, y, ".", color="0.45", ms=2.5, label="measured (Li 2013 Fig. S5)")
-            ax.axhline(0, color="0.8", lw=0.6)
-            ax.set_xlabel(r"leg angle $\theta$ (deg)")
-            ax.set_ylabel(what)
-            ax.set_xlim(-135, 135)
-        fig.legend(*axes[0].get_legend_handles_labels(), frameon=False, fontsize=7.5,
-                   loc="outside lower center", ncol=3)
-        if title:
-            fig.suptitle(title, fontsize=9)
-        return _save(fig, path)
+    curves = [(p["theta_deg"], {"Fz": p["Fz_N"], "Fx": p["Fx_N"]}, styles[p["kind"]]) for p in points]
+    return _lift_thrust(curves, measured, path, title)
