@@ -29,7 +29,7 @@ from terradyn.media import LI2013
 from terradyn.sph.materials import from_medium
 from terradyn.sph.plate3d import flat_leg3d
 from terradyn.sph.state import SPHConfig
-from terradyn.sph.suite import measured_legs
+from terradyn.sph.suite import flat_leg_scores, measured_legs
 from terradyn.units import DEG
 
 RES = Path(__file__).parent / "results"
@@ -39,31 +39,9 @@ DEFAULT = ["poppy LP:slab", "poppy LP:finite"]
 SLAB = 6
 
 
-def score(p: dict, exp) -> dict:
-    """RMS differences (N) of a point's curves from the measured flat-leg curve over the
-    measured angles, and RFT's (Table S5 grid, linear), as the 2D validation scores them."""
-    from terradyn.media import stress_model
-    from terradyn.motion import Rotation
-    from terradyn.rft import simulate
-    from terradyn.sph.suite import make_leg
-    from terradyn.units import CM
-
-    e = exp[(exp.medium == p["medium"]) & (exp.leg == "flat")]
-    if not len(e):
-        return {}
-    rft = simulate(make_leg("flat"), Rotation(omega=p["omega_rad_s"], hip_height=2 * CM,
-                                              theta_start=-135 * DEG, theta_end=135 * DEG,
-                                              n_theta=271),
-                   stress_model(p["medium"], "table", interp="linear"))
-    out = {}
-    for comp, name in (("Fz", "lift"), ("Fx", "thrust")):
-        q = e[e.force == comp]
-        th, y = q.theta_deg.values, q.force_N.values
-        sph = np.interp(th, p["theta_deg"], p[f"{comp}_N"])
-        r = np.interp(th, rft.theta.values, rft[comp].values)
-        out[f"rms_{name}_N"] = round(float(np.sqrt(np.mean((sph - y) ** 2))), 4)
-        out[f"rms_{name}_rft_N"] = round(float(np.sqrt(np.mean((r - y) ** 2))), 4)
-    return out
+def score(p: dict) -> dict:
+    """Measured peaks and RMS differences of a point (:func:`terradyn.sph.suite.flat_leg_scores`)."""
+    return flat_leg_scores(p["medium"], p["theta_deg"], p["Fz_N"], p["Fx_N"], p["omega_rad_s"])
 
 
 LI2013_S5 = f"{LI2013}, Fig. S5 (measured)"  # as the validation suite's leg checks cite it
@@ -135,17 +113,14 @@ def main() -> None:
 
         r = flat_leg3d(mat, config=SPHConfig(dx=a.dx_mm * 1e-3), omega=a.omega,
                        slab=SLAB if kind == "slab" else None, progress=progress)
-        e = exp[(exp.medium == medium) & (exp.leg == "flat")]
         p = {"medium": medium, "kind": kind, "dx_mm": a.dx_mm, "omega_rad_s": a.omega,
              "friction_deg": round(mat.friction / DEG, 3), "youngs_MPa": mat.youngs / 1e6,
              "peak_lift_N": round(r["peak_lift"], 4), "peak_thrust_N": round(r["peak_thrust"], 4),
-             "measured_peak_lift_N": float(e[e.force == "Fz"].force_N.max()) if len(e) else None,
-             "measured_peak_thrust_N": float(e[e.force == "Fx"].force_N.max()) if len(e) else None,
              "theta_deg": np.round(r["theta"] / DEG, 3).tolist(),
              "Fx_N": np.round(r["Fx"], 4).tolist(), "Fz_N": np.round(r["Fz"], 4).tolist(),
              "window_deg": r["window_deg"], "particles": r["particles"], "steps": r["steps"],
              "lost": r["lost"], "wall_s": round(time.perf_counter() - t0, 1)}
-        p.update(score(p, exp))
+        p.update(score(p))
         res["points"].append(p)
         atomic_write_text(a.out, json.dumps(res, indent=1))
         print(json.dumps({k: v for k, v in p.items() if k not in ("theta_deg", "Fx_N", "Fz_N")}),

@@ -169,6 +169,33 @@ def rig_table(rig: dict, name: str = "SPH rig", method: str = "linear"):
                        "SPH virtual plate rig (terradyn.sph.suite.rig_point)")
 
 
+def flat_leg_scores(medium: str, theta_deg, fz, fx, omega: float = 1.1) -> dict:
+    """A flat-leg curve (e.g. :func:`terradyn.sph.plate3d.flat_leg3d`'s) against Li 2013 Fig.
+    S5's measured one, as :func:`leg_vs_measured` scores the 2D leg: measured peaks and the RMS
+    differences over the measured angles (N), with RFT's (Table S5 grid, linear) beside them.
+    Empty for a medium without measured curves."""
+    from ..rft import simulate as rft_simulate
+
+    exp = measured_legs()
+    e = exp[(exp.medium == medium) & (exp.leg == "flat")]
+    if not len(e):
+        return {}
+    rft = rft_simulate(make_leg("flat"), Rotation(omega=omega, hip_height=2 * CM,
+                                                  theta_start=-135 * DEG, theta_end=135 * DEG,
+                                                  n_theta=271),
+                       stress_model(medium, "table", interp="linear"))
+    out = {}
+    for comp, name, curve in (("Fz", "lift", fz), ("Fx", "thrust", fx)):
+        q = e[e.force == comp]
+        th, y = q.theta_deg.values, q.force_N.values
+        ours = np.interp(th, np.asarray(theta_deg, float), np.asarray(curve, float))
+        r = np.interp(th, rft.theta.values, rft[comp].values)
+        out[f"measured_peak_{name}_N"] = float(y.max())
+        out[f"rms_{name}_N"] = round(float(np.sqrt(np.mean((ours - y) ** 2))), 4)
+        out[f"rms_{name}_rft_N"] = round(float(np.sqrt(np.mean((r - y) ** 2))), 4)
+    return out
+
+
 # ---------------------------------------------------------------------------------- legs
 #: The most runs one leg test may average (``realizations``).
 MAX_REALIZATIONS = 20
