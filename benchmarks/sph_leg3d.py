@@ -1,16 +1,17 @@
-"""The flat leg in 3D: does plane strain make the SPH leg's lift too high and its thrust too low?
+"""The legs in 3D: does plane strain make the SPH leg's lift too high and its thrust too low?
 
 The 2D SPH flat leg in poppy LP peaks at +32 % lift and -26 % thrust against Li 2013's
 measured curves (docs/sph.md). The same stroke in the 3D code (:func:`terradyn.sph.plate3d.
 flat_leg3d`: the 7.62 x 2.54 x 0.64 cm plate on its hip, half domain), beside the 3D code's
 plane-strain slab (the 2D scene in the same code: the check that the codes agree and the
 reference the 3D effect is measured against), at the same resolution and speed, and the
-measured peaks.
+measured peaks. The C and reverse-C legs (:func:`terradyn.sph.plate3d.leg3d`, the half-circle
+arcs of :mod:`terradyn.geometry`) the same way.
 
-    NUMBA_NUM_THREADS=1 python benchmarks/sph_leg3d.py [--points MEDIUM:KIND ...] [--dx-mm 4]
-        [--omega 1.1] [--out FILE]
+    NUMBA_NUM_THREADS=1 python benchmarks/sph_leg3d.py [--points MEDIUM:KIND[:LEG] ...]
+        [--dx-mm 4] [--omega 1.1] [--out FILE]
 
-KIND: ``slab`` or ``finite``. Writes benchmarks/results/sph_leg3d.json after every point
+KIND: ``slab`` or ``finite``; LEG: ``flat`` (default), ``c`` or ``reverse-c``. Writes benchmarks/results/sph_leg3d.json after every point
 (resumable: finished points are kept and skipped), with the force curves. A study, not a
 timing benchmark: wall times are as run.
 """
@@ -27,9 +28,9 @@ import numpy as np
 from terradyn.io import atomic_write_text
 from terradyn.media import LI2013
 from terradyn.sph.materials import from_medium
-from terradyn.sph.plate3d import flat_leg3d
+from terradyn.sph.plate3d import LEG3D_SHAPES, leg3d
 from terradyn.sph.state import SPHConfig
-from terradyn.sph.suite import flat_leg_scores, measured_legs
+from terradyn.sph.suite import leg_scores, measured_legs
 from terradyn.units import DEG
 
 RES = Path(__file__).parent / "results"
@@ -40,8 +41,13 @@ SLAB = 6
 
 
 def score(p: dict) -> dict:
-    """Measured peaks and RMS differences of a point (:func:`terradyn.sph.suite.flat_leg_scores`)."""
-    return flat_leg_scores(p["medium"], p["theta_deg"], p["Fz_N"], p["Fx_N"], p["omega_rad_s"])
+    """Measured peaks and RMS differences of a point (:func:`terradyn.sph.suite.leg_scores`)."""
+    return leg_scores(p["medium"], p["theta_deg"], p["Fz_N"], p["Fx_N"], p["omega_rad_s"],
+                      leg_of(p))
+
+
+def leg_of(p: dict) -> str:
+    return p.get("leg", "flat")  # the first points (flat leg only) carry no leg
 
 
 LI2013_S5 = f"{LI2013}, Fig. S5 (measured)"  # as the validation suite's leg checks cite it
@@ -54,7 +60,7 @@ def checks(points: list[dict]) -> list[dict]:
     for p in points:
         if p["kind"] != "finite" or p.get("measured_peak_lift_N") is None:
             continue
-        tag = f"flat leg, {p['medium']} (3D, plate3d, {p['dx_mm']:g} mm)"
+        tag = f"{leg_of(p)} leg, {p['medium']} (3D, plate3d, {p['dx_mm']:g} mm)"
         for name in ("lift", "thrust"):
             ours, ref = p[f"peak_{name}_N"], p[f"measured_peak_{name}_N"]
             rows.append({"scene": "legs", "quantity": f"peak {name}, {tag}", "ours": ours,
@@ -76,7 +82,7 @@ def write_checks(res: dict, path: Path) -> None:
     rows = checks(res["points"])
     if rows:
         atomic_write_text(path, json.dumps({"checks": rows, "details": {}, "settings": {
-            "scenes": ["legs"], "model": "3D (terradyn.sph.plate3d.flat_leg3d)",
+            "scenes": ["legs"], "model": "3D (terradyn.sph.plate3d.leg3d)",
             "dx_mm": sorted({q["dx_mm"] for q in res["points"] if q["kind"] == "finite"})[0],
             "dp_match": "plane-strain", "omega_rad_s": 1.1,
             "command": "python benchmarks/sph_leg3d.py"}}, indent=1))
@@ -84,7 +90,8 @@ def write_checks(res: dict, path: Path) -> None:
 
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--points", nargs="+", default=DEFAULT, help="MEDIUM:KIND, KIND slab|finite")
+    ap.add_argument("--points", nargs="+", default=DEFAULT,
+                    help="MEDIUM:KIND[:LEG], KIND slab|finite, LEG flat|c|reverse-c")
     ap.add_argument("--dx-mm", type=float, default=4.0)
     ap.add_argument("--omega", type=float, default=1.1)
     ap.add_argument("--out", type=Path, default=OUT)
@@ -94,13 +101,20 @@ def main() -> None:
     a = ap.parse_args()
     res = (json.loads(a.out.read_text()) if a.out.exists()
            else {"machine": platform.processor() or platform.machine(), "points": []})
-    done = {(p["medium"], p["kind"], p["dx_mm"], p["omega_rad_s"]) for p in res["points"]}
+    done = {(p["medium"], p["kind"], leg_of(p), p["dx_mm"], p["omega_rad_s"])
+            for p in res["points"]}
     exp = measured_legs()
+    specs = []
     for spec in a.points:
-        medium, kind = spec.rsplit(":", 1)
-        if kind not in ("slab", "finite"):
-            raise SystemExit(f"error: --points: kind must be slab or finite, got {kind!r}")
-        if (medium, kind, a.dx_mm, a.omega) in done:
+        parts = spec.split(":")
+        medium, kind = parts[0], parts[1] if len(parts) > 1 else ""
+        leg = parts[2] if len(parts) == 3 else "flat"
+        if kind not in ("slab", "finite") or leg not in LEG3D_SHAPES or len(parts) > 3:
+            ap.error(f"--points: {spec!r} must be MEDIUM:KIND[:LEG] with KIND "
+                             f"slab or finite and LEG one of {', '.join(LEG3D_SHAPES)}")
+        specs.append((spec, medium, kind, leg))
+    for spec, medium, kind, leg in specs:
+        if (medium, kind, leg, a.dx_mm, a.omega) in done:
             continue
         mat = from_medium(medium)
         t0 = time.perf_counter()
@@ -111,9 +125,9 @@ def main() -> None:
                 last[0] = time.perf_counter()
                 print(f"  {spec}: {d:.2f} / {tot:.2f} s simulated", flush=True)
 
-        r = flat_leg3d(mat, config=SPHConfig(dx=a.dx_mm * 1e-3), omega=a.omega,
-                       slab=SLAB if kind == "slab" else None, progress=progress)
-        p = {"medium": medium, "kind": kind, "dx_mm": a.dx_mm, "omega_rad_s": a.omega,
+        r = leg3d(mat, shape=leg, config=SPHConfig(dx=a.dx_mm * 1e-3), omega=a.omega,
+                  slab=SLAB if kind == "slab" else None, progress=progress)
+        p = {"medium": medium, "kind": kind, "leg": leg, "dx_mm": a.dx_mm, "omega_rad_s": a.omega,
              "friction_deg": round(mat.friction / DEG, 3), "youngs_MPa": mat.youngs / 1e6,
              "peak_lift_N": round(r["peak_lift"], 4), "peak_thrust_N": round(r["peak_thrust"], 4),
              "theta_deg": np.round(r["theta"] / DEG, 3).tolist(),
@@ -128,15 +142,15 @@ def main() -> None:
     if a.out == OUT:  # the shipped study: its checks go beside the 2D validation's
         write_checks(res, a.checks)
     if a.figure:
-        from terradyn.sph.plots import leg3d
+        from terradyn.sph import plots
 
-        medium = a.points[0].rsplit(":", 1)[0]
+        medium, leg = specs[0][1], specs[0][3]
         pts = [p for p in res["points"] if p["medium"] == medium and p["dx_mm"] == a.dx_mm
-               and p["omega_rad_s"] == a.omega]
-        e = exp[(exp.medium == medium) & (exp.leg == "flat")]
+               and p["omega_rad_s"] == a.omega and leg_of(p) == leg]
+        e = exp[(exp.medium == medium) & (exp.leg == leg)]
         meas = {c: (e[e.force == c].theta_deg.values, e[e.force == c].force_N.values)
                 for c in ("Fz", "Fx")}
-        leg3d(pts, meas, a.figure, title=f"flat leg, {medium}, omega = {a.omega:g} rad/s, "
+        plots.leg3d(pts, meas, a.figure, title=f"{leg} leg, {medium}, omega = {a.omega:g} rad/s, "
                                          f"{a.dx_mm:g} mm particles")
 
 

@@ -172,19 +172,20 @@ def test_interrupted_run_resumes_says_so_and_matches(monkeypatch, capsys, tmp_pa
 
 @pytest.mark.parametrize("args,field", [(["--dx-mm", "0"], "dx-mm"), (["--slab", "2"], "slab"),
                                         (["--out", "x.xlsx"], "out"), (["--medium", "nope"], "medium"),
-                                        (["--plot", "f.xyz"], "plot")])
+                                        (["--plot", "f.xyz"], "plot"), (["--leg", "oval"], "leg")])
 def test_leg3d_bad_input_is_one_line_before_work(monkeypatch, capsys, args, field):
     from terradyn.sph import plate3d
 
     def boom(*a, **k):
         raise Started("the 3D run started before the input was checked")
 
-    monkeypatch.setattr(plate3d, "flat_leg3d", boom)
+    monkeypatch.setattr(plate3d, "leg3d", boom)
     assert main(["sph", "leg3d", *args]) == 2
     _one_line_error(capsys, field)
 
 
-def test_leg3d_writes_the_curves_scores_and_figure(monkeypatch, capsys, tmp_path):
+@pytest.mark.parametrize("leg", ["flat", "c"])
+def test_leg3d_writes_the_curves_scores_and_figure(monkeypatch, capsys, tmp_path, leg):
     # the 3D physics is tested in test_sph_plate3d; here the command's plumbing, on a stub run
     import json
 
@@ -194,15 +195,18 @@ def test_leg3d_writes_the_curves_scores_and_figure(monkeypatch, capsys, tmp_path
     shape = np.clip(np.cos(th), 0, None)
 
     def fake(mat, **k):
-        assert k["omega"] == 1.1 and k["slab"] is None
+        assert k["omega"] == 1.1 and k["slab"] is None and k["shape"] == leg
         return {"theta": th, "Fz": 4.0 * shape, "Fx": 3.0 * shape, "peak_lift": 4.0,
                 "peak_thrust": 3.0, "particles": 10, "steps": 5, "lost": 0, "wall_s": 0.1}
 
-    monkeypatch.setattr(plate3d, "flat_leg3d", fake)
+    monkeypatch.setattr(plate3d, "leg3d", fake)
     out, fig = tmp_path / "leg.json", tmp_path / "leg.png"
-    assert main(["sph", "leg3d", "--medium", "poppy LP", "-o", str(out), "--plot", str(fig)]) == 0
+    assert main(["sph", "leg3d", "--medium", "poppy LP", "--leg", leg, "-o", str(out),
+                 "--plot", str(fig)]) == 0
     summary = json.loads(capsys.readouterr().out)
-    assert summary["peak_lift_N"] == 4.0 and summary["measured_peak_lift_N"] > 4.0
+    # scored against that leg's measured curve (Li 2013 Fig. S5: C 9.36 N, flat 4.21 N lift)
+    assert summary["leg"] == leg and summary["peak_lift_N"] == 4.0
+    assert summary["measured_peak_lift_N"] == pytest.approx(9.3571 if leg == "c" else 4.2121)
     assert summary["rms_thrust_rft_N"] > 0 and summary["rms_lift_N"] > 0
     stored = json.loads(out.read_text())
     assert len(stored["theta_deg"]) == 271 and stored["Fz_N"][135] == pytest.approx(4.0)

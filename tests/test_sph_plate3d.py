@@ -206,11 +206,72 @@ def test_flat_leg_in_3d_is_pushed_forward_and_up_as_it_sweeps_back_through_the_b
     assert r["lost"] == 0 and r["force_factor"] == 1.0
 
 
+def test_curved_leg_markers_lie_on_the_arc_layers_with_radial_normals():
+    # the C leg hanging straight down (hip 2 cm up): its markers against geometry.c_leg's arc
+    from terradyn.geometry import c_leg
+    from terradyn.sph.state import LEG
+
+    cfg = SPHConfig(dx=4e-3)
+    L = 7.62e-2
+    sc = P.plate_scene("poppy LP", config=cfg, length=L, half_x=0.1, depth=0.1, mirror_x=False,
+                       pose=(0.0, 0.02 - 0.5 * L, -0.5 * math.pi), curvature=1.0)
+    m = sc.pos[sc.kind == LEG]
+    arc = c_leg().outline(4000)
+    centre = np.array([0.0, 0.02 - 0.5 * L])  # the half circle's centre: the chord's middle
+    r = np.hypot(m[:, 0] - centre[0], m[:, 2] - centre[1])
+    offsets = np.sort(np.unique(np.round(np.abs(r - 0.5 * L) * 1e4)) / 1e4)
+    t, dx = P.PLATE_THICKNESS, cfg.dx
+    expected = sorted({round(abs(0.5 * t - (k + 0.5) * dx), 4) for k in range(cfg.wall_layers)})
+    assert offsets.tolist() == pytest.approx(expected, abs=1e-4)
+    assert np.all(m[:, 0] <= 1e-12)  # the C bulges backwards (-x), the tip's way
+    d = np.sqrt((m[:, 0, None] - arc[None, :, 0]) ** 2
+                + (m[:, 2, None] - 0.02 - arc[None, :, 1]) ** 2).min(1)
+    assert d.max() < 0.5 * t + cfg.wall_layers * dx
+    s = P.Solver3D(sc)
+    wn = s.wn[s.lidx]
+    radial = (m[:, [0, 2]] - centre) / r[:, None]
+    cosang = np.sum(wn * radial, 1)
+    assert np.allclose(np.abs(cosang), 1.0) and np.allclose(np.hypot(*wn.T), 1.0)
+    assert np.all((cosang > 0) == (sc.nz[sc.kind == LEG] > 0))  # +1: the convex face, outwards
+
+
+@pytest.fixture(scope="module")
+def slab_legs():
+    # plane-strain slab, 8 mm particles, a shallow fast stroke: seconds each
+    cfg = SPHConfig(dx=8e-3, settle_time=0.01)
+    kw = dict(config=cfg, slab=4, omega=4.0, hip_height=0.06, n_theta=55)
+    return {name: P.leg3d("poppy LP", **kw, **a) for name, a in
+            (("flat", {}), ("nearly flat arc", {"curvature": 1e-3}), ("c", {"shape": "c"}),
+             ("reverse-c", {"shape": "reverse-c"}))}
+
+
+def test_a_nearly_flat_arc_reproduces_the_flat_plate(slab_legs):
+    # the curved-leg path (radial normals, nearest-marker guard, circle side test) against the
+    # flat plate's at curvature 1e-3 (radius 38 m): the same forces within the flow's scatter
+    f, a = slab_legs["flat"], slab_legs["nearly flat arc"]
+    for c in ("Fx", "Fz"):
+        assert np.abs(a[c] - f[c]).max() < 0.03 * np.abs(f[c]).max()
+
+
+def test_leg_shapes_order_the_lift_as_li_2013_measured(slab_legs):
+    # Li 2013 Fig. S5: the C leg lifts most, the reverse C least (peak lift C > flat > reverse C)
+    lift = {k: v["peak_lift"] for k, v in slab_legs.items()}
+    assert lift["c"] > 2.0 * lift["flat"] > 2.0 * lift["reverse-c"]
+    th = slab_legs["c"]["theta"]
+    assert th[np.argmax(slab_legs["c"]["Fz"])] < th[np.argmax(slab_legs["flat"]["Fz"])]
+
+
 def test_flat_leg_3d_bad_requests_are_one_line_errors():
     with pytest.raises(InputError, match="omega"):
         P.flat_leg3d("poppy LP", omega=0.0)
     with pytest.raises(InputError, match="hip_height"):
         P.flat_leg3d("poppy LP", hip_height=0.2)
+    with pytest.raises(InputError, match="shape"):
+        P.leg3d("poppy LP", shape="oval")
+    with pytest.raises(InputError, match="curvature"):
+        P.leg3d("poppy LP", curvature=1.5)
+    with pytest.raises(InputError, match="mirror_x"):
+        P.plate_scene("poppy LP", curvature=1.0)
 
 
 def test_leg3d_figure_labels_what_it_draws(tmp_path):

@@ -318,41 +318,44 @@ def legs_cmd(omega: list[float] = typer.Option([0.2], help="Angular speeds, rad/
 @sph_app.command("leg3d")
 def leg3d_cmd(medium: str = _MEDIUM, density_kg_m3: Optional[float] = _DENSITY,
               friction_deg: Optional[float] = _FRICTION,
+              leg: str = typer.Option("flat", help="Leg shape: flat, c or reverse-c (the 7.62 cm chord legs of Li 2013)."),
               dx_mm: float = typer.Option(4.0, "--dx-mm", help="Particle spacing, mm (4: about an hour for poppy LP on one core; the cost grows as dx^-4)."),
               omega: float = typer.Option(1.1, help="Angular speed, rad/s (the 2D validation's 1.1)."),
               slab: Optional[int] = typer.Option(None, help="Plane-strain configuration instead: a slab this many particles thick (>= 4) between two mirror planes."),
               out: Optional[Path] = typer.Option(None, "--out", "-o", help="Write the curves and peaks as JSON here (stdout gets the summary)."),
               plot: Optional[Path] = typer.Option(None, help="Figure: lift and thrust against the leg angle, with the measured curve where there is one.")):
-    """The flat leg of the rotating-leg test in 3D (serial; its real 2.54 cm width)."""
+    """A leg of the rotating-leg test in 3D (serial; its real 2.54 cm width)."""
     from .. import io
     from ..sph import plate3d, plots
     from ..sph.state import SPHConfig
-    from ..sph.suite import flat_leg_scores, measured_legs
+    from ..sph.suite import leg_scores, measured_legs
     from ..units import DEG
 
+    if leg not in plate3d.LEG3D_SHAPES:
+        raise InputError("leg", f"must be one of {', '.join(plate3d.LEG3D_SHAPES)}, got {leg!r}")
     cfg = SPHConfig(dx=_dx(dx_mm))
     if slab is not None:
         integer("slab", slab, 4)
     io.check_output(out, "out", (".json",))
     io.check_plot(plot)
     mat = _material(medium, density_kg_m3, friction_deg)
-    with _progress(f"SPH 3D flat leg, {mat.name}") as cb:
-        r = plate3d.flat_leg3d(mat, config=cfg, slab=slab, omega=omega, progress=cb)
-    summary = {"medium": mat.name, "kind": "slab" if slab else "finite", "dx_mm": dx_mm,
+    with _progress(f"SPH 3D {leg} leg, {mat.name}") as cb:
+        r = plate3d.leg3d(mat, shape=leg, config=cfg, slab=slab, omega=omega, progress=cb)
+    summary = {"medium": mat.name, "leg": leg, "kind": "slab" if slab else "finite", "dx_mm": dx_mm,
                "omega_rad_s": omega, "peak_lift_N": r["peak_lift"],
                "peak_thrust_N": r["peak_thrust"], "particles": r["particles"],
                "steps": r["steps"], "lost": r["lost"], "wall_s": round(r["wall_s"], 1)}
     th = r["theta"] / DEG
-    summary.update(flat_leg_scores(mat.name, th, r["Fz"], r["Fx"], omega))
+    summary.update(leg_scores(mat.name, th, r["Fz"], r["Fx"], omega, leg))
     if out is not None:
         io.atomic_write_text(out, json.dumps(summary | {"theta_deg": th.tolist(), "Fz_N": r["Fz"].tolist(),
                                                         "Fx_N": r["Fx"].tolist()}, indent=1) + "\n")
     if plot:
         e = measured_legs()
-        e = e[(e.medium == mat.name) & (e.leg == "flat")]
+        e = e[(e.medium == mat.name) & (e.leg == leg)]
         meas = {c: (e[e.force == c].theta_deg.values, e[e.force == c].force_N.values) for c in ("Fz", "Fx")}
         plots.leg3d([{"kind": summary["kind"], "theta_deg": th, "Fz_N": r["Fz"], "Fx_N": r["Fx"]}],
-                    meas, plot, title=f"flat leg, {mat.name}, omega = {omega:g} rad/s, {dx_mm:g} mm particles")
+                    meas, plot, title=f"{leg} leg, {mat.name}, omega = {omega:g} rad/s, {dx_mm:g} mm particles")
     typer.echo(json.dumps(summary, indent=1))
 
 

@@ -50,6 +50,7 @@ from numba import njit
 
 from ..errors import InputError, check_memory, in_range, integer, positive
 from ..units import CM, G
+from ..geometry import ArcLeg
 from .calibration import PLATE_TEST
 from .materials import GranularMaterial, material as _material
 from .neighbours import SKIN
@@ -71,10 +72,11 @@ FP = ("h", "dt", "shear_mod", "bulk_mod", "alpha_phi", "k_c", "rho_min", "rho_ma
       "rho_crit", "c0", "av_alpha", "av_beta", "gz", "half_t", "gap", "max_push", "vmax",
       "plate_a", "plate_b", "ly", "x_lo", "y_lo", "z_lo", "inv_cell", "rlist", "x_hi_box",
       "y_hi_box", "z_lo_box", "side_reach", "x_lo_box", "p_cx", "p_cz", "p_ux", "p_uz", "p_vx",
-      "p_vz", "p_om")
+      "p_vz", "p_om", "arc_r", "arc_qc", "arc_sg", "arc_cos")
 (F_H, F_DT, F_G, F_K, F_APHI, F_KC, F_RMIN, F_RMAX, F_APSI, F_RCRIT, F_C0, F_AVA, F_AVB, F_GZ,
  F_HALFT, F_GAP, F_MAXPUSH, F_VMAX, F_PA, F_PB, F_LY, F_XLO, F_YLO, F_ZLO, F_INVC, F_RLIST,
- F_XHIB, F_YHIB, F_ZLOB, F_SREACH, F_XLOB, F_CX, F_CZ, F_UX, F_UZ, F_VX, F_VZ, F_OM) = range(len(FP))
+ F_XHIB, F_YHIB, F_ZLOB, F_SREACH, F_XLOB, F_CX, F_CZ, F_UX, F_UZ, F_VX, F_VZ, F_OM, F_ARCR,
+ F_ARCQC, F_ARCSG, F_ARCCOS) = range(len(FP))
 #: Columns of a plate pose row (per step): centre x, z (m), angle phi of the chord from +x
 #: towards +z (rad), centre velocity x, z (m/s), angular velocity d phi / dt (rad/s). The
 #: chord is u = (cos phi, sin phi), the normal n = (-sin phi, cos phi) (phi = 0: the
@@ -82,9 +84,9 @@ FP = ("h", "dt", "shear_mod", "bulk_mod", "alpha_phi", "k_c", "rho_min", "rho_ma
 #: r_x - c_x).
 POSE = ("cx", "cz", "phi", "vx", "vz", "om")
 IP = ("nr", "ng", "nss", "nsb", "ncx", "ncy", "ncz", "mirror_x", "mirror_y0", "mirror_y1",
-      "slab", "builds", "has_plate", "bad", "lost")
+      "slab", "builds", "has_plate", "bad", "lost", "arc")
 (I_NR, I_NG, I_NSS, I_NSB, I_NCX, I_NCY, I_NCZ, I_MX, I_MY0, I_MY1, I_SLAB, I_BUILDS, I_PLATE,
- I_BAD, I_LOST) = range(len(IP))
+ I_BAD, I_LOST, I_ARC) = range(len(IP))
 #: Kernel return codes.
 OK, UNSTABLE, PAIRS_FULL, GHOSTS_FULL = 0, 1, 2, 3
 
@@ -220,8 +222,9 @@ def _make_ghosts(pos, kind, src, gs, go, fp, ip):
 
 
 @njit(cache=True)
-def _update_ghosts(pos, vel, gv, rho, mass, sig, kind, nz, dcl, grd, side, src, gs, go, ip):
-    """Refresh every ghost from its source (reflected position, velocities and stress)."""
+def _update_ghosts(pos, vel, gv, rho, mass, sig, kind, nz, wn, dcl, grd, side, src, gs, go, ip):
+    """Refresh every ghost from its source (reflected position, velocities, marker normal and
+    stress)."""
     nr = ip[I_NR]
     for g in range(nr, nr + ip[I_NG]):
         s = src[g]
@@ -240,6 +243,8 @@ def _update_ghosts(pos, vel, gv, rho, mass, sig, kind, nz, dcl, grd, side, src, 
         mass[g] = mass[s]
         kind[g] = kind[s]
         nz[g] = nz[s]
+        wn[g, 0] = sx * wn[s, 0]
+        wn[g, 1] = wn[s, 1]
         dcl[g] = dcl[s]
         grd[g] = grd[s]
         side[g] = side[s]
@@ -341,7 +346,7 @@ def _build_pairs(pos, kind, cell_start, cell_idx, ss, sso, sb, sbo, fp, ip):
 
 # ------------------------------------------------------------------------- the pair terms
 @njit(cache=True, fastmath=True)
-def _boundary_pass(pos, vel, gv, rho, sig, kind, nz, dcl, sb, sbo, wsb, reuse, bacc, fp, ip):
+def _boundary_pass(pos, vel, gv, rho, sig, kind, wn, dcl, sb, sbo, wsb, reuse, bacc, fp, ip):
     """Adami extrapolation: stress and (no-slip) ghost velocity of every real wall and
     plate particle from the granular particles around it (Shepard average + rho (g - a_w) .
     (x_w - x_f); a_w = 0: walls fixed, the plate moves at constant speed). A plate marker
@@ -353,8 +358,6 @@ def _boundary_pass(pos, vel, gv, rho, sig, kind, nz, dcl, sb, sbo, wsb, reuse, b
     n = nr + ip[I_NG]
     sup2 = 4.0 * h * h
     c_w = _W3D / (h * h * h)
-    pnx = -fp[F_UZ]  # the plate's normal
-    pnz = fp[F_UX]
     bacc[:nr] = 0.0
     for f in range(n):
         if kind[f] != SOIL:
@@ -379,7 +382,7 @@ def _boundary_pass(pos, vel, gv, rho, sig, kind, nz, dcl, sb, sbo, wsb, reuse, b
                 r2 = rx * rx + ry * ry + rz * rz
                 if r2 >= sup2:
                     continue
-                if kind[w] == LEG and ((xf - pos[w, 0]) * pnx + (zf - pos[w, 2]) * pnz) * nz[w] \
+                if kind[w] == LEG and (xf - pos[w, 0]) * wn[w, 0] + (zf - pos[w, 2]) * wn[w, 1] \
                         + dcl[w] <= 0.0:
                     continue
                 q = math.sqrt(r2) / h
@@ -433,7 +436,7 @@ def _add_grad(lg, row, m, vol, dvx, dvy, dvz, gx, gy, gz):
 
 
 @njit(cache=True, fastmath=True)
-def _strain_pass(pos, vel, gv, rho, mass, sig, kind, nz, dcl, side, ss, sso, sb, sbo, fss, fsb,
+def _strain_pass(pos, vel, gv, rho, mass, sig, kind, wn, dcl, side, ss, sso, sb, sbo, fss, fsb,
                  lg, fp, ip):
     """Pass 1: d rho/dt and the velocity gradient of every real granular particle (l_ab =
     dv_a/dx_b, lg[i] = (d rho/dt, lxx, lxy, lxz, lyx, lyy, lyz, lzx, lzy, lzz)), then
@@ -444,8 +447,6 @@ def _strain_pass(pos, vel, gv, rho, mass, sig, kind, nz, dcl, side, ss, sso, sb,
     sup2 = 4.0 * h * h
     dwc = -5.0 * _W3D / (h * h * h * h * h)
     inv_h = 1.0 / h
-    pnx = -fp[F_UZ]  # the plate's normal
-    pnz = fp[F_UX]
     lg[:nr] = 0.0
     for a in range(nr):
         if kind[a] != SOIL:
@@ -486,7 +487,7 @@ def _strain_pass(pos, vel, gv, rho, mass, sig, kind, nz, dcl, side, ss, sso, sb,
             r2 = rx * rx + ry * ry + rz * rz
             if r2 >= sup2:
                 continue
-            if kind[w] == LEG and (rx * pnx + rz * pnz) * nz[w] + dcl[w] <= 0.0:
+            if kind[w] == LEG and rx * wn[w, 0] + rz * wn[w, 1] + dcl[w] <= 0.0:
                 continue
             t = 1.0 - 0.5 * math.sqrt(r2) * inv_h
             fdw = dwc * t * t * t
@@ -521,12 +522,14 @@ def _stress_term3(psig, a, b, pi_ij, gx, gy, gz):
 
 
 @njit(cache=True, fastmath=True)
-def _accel_pass(pos, vel, rho, mass, sig, psig, kind, nz, dcl, grd, ss, sso, sb, sbo, fss, fsb,
+def _accel_pass(pos, vel, rho, mass, sig, psig, kind, nz, wn, dcl, grd, ss, sso, sb, sbo, fss, fsb,
                 acc, cont, fp, ip):
     """Pass 2's pair sums (the pairs and kernel-gradient factors of pass 1, positions
     unchanged since): acceleration of every real granular particle (acc[i, 0:3]), its force
     on the plate (acc[i, 3:6]) and the nearest guarded plate surface (cont[i] = (distance,
-    normal z)). psig: scratch (N, 6) for sigma / rho^2."""
+    face, outward normal x, z); a flat plate: the least distance over the guarded markers, a
+    curved leg: the distance to the tangent plane of the nearest guarded marker). psig:
+    scratch (N, 6) for sigma / rho^2."""
     h = fp[F_H]
     nr = ip[I_NR]
     h2 = h * h
@@ -534,8 +537,7 @@ def _accel_pass(pos, vel, rho, mass, sig, psig, kind, nz, dcl, grd, ss, sso, sb,
     ava = fp[F_AVA]
     avb = fp[F_AVB]
     half_t = fp[F_HALFT]
-    pnx = -fp[F_UZ]  # the plate's normal
-    pnz = fp[F_UX]
+    arc = ip[I_ARC] != 0
     for i in range(nr + ip[I_NG]):
         r = rho[i]
         inv2 = 1.0 / (r * r)
@@ -583,6 +585,10 @@ def _accel_pass(pos, vel, rho, mass, sig, psig, kind, nz, dcl, grd, ss, sso, sb,
         f3z = 0.0
         dmin = fp[F_GAP]
         pn = 0.0
+        gnx = 0.0
+        gnz = 0.0
+        r2min = np.inf
+        wnear = -1
         for k in range(sbo[a], sbo[a + 1]):
             fdw = fsb[k]
             if fdw == 0.0:
@@ -604,18 +610,37 @@ def _accel_pass(pos, vel, rho, mass, sig, psig, kind, nz, dcl, grd, ss, sso, sb,
                 f3y -= ma * pay
                 f3z -= ma * paz
                 if grd[w] > 0.0:
-                    dn = (rx * pnx + rz * pnz) * nz[w] + dcl[w] - half_t
-                    if dn < dmin:
-                        dmin = dn
-                        pn = nz[w]
+                    if arc:  # a curved face: the tangent plane of the nearest marker
+                        r2 = rx * rx + ry * ry + rz * rz
+                        if r2 < r2min:
+                            r2min = r2
+                            wnear = w
+                    else:
+                        dn = rx * wn[w, 0] + rz * wn[w, 1] + dcl[w] - half_t
+                        if dn < dmin:
+                            dmin = dn
+                            pn = nz[w]
+                            gnx = wn[w, 0]
+                            gnz = wn[w, 1]
         acc[a, 0] += ax
         acc[a, 1] += ay
         acc[a, 2] += az
         acc[a, 3] = f3x
         acc[a, 4] = f3y
         acc[a, 5] = f3z
+        if wnear >= 0:
+            w = wnear
+            dn = ((xa - pos[w, 0]) * wn[w, 0] + (za - pos[w, 2]) * wn[w, 1] + dcl[w]
+                  - half_t)
+            if dn < dmin:
+                dmin = dn
+                pn = nz[w]
+                gnx = wn[w, 0]
+                gnz = wn[w, 1]
         cont[a, 0] = dmin
         cont[a, 1] = pn
+        cont[a, 2] = gnx
+        cont[a, 3] = gnz
 
 
 @njit(cache=True, fastmath=True)
@@ -635,8 +660,6 @@ def _kick(pos, vel, mass, rho, sig, kind, acc, cont, damp, force, fp, ip):
     mx = ip[I_MX] != 0
     my0 = ip[I_MY0] != 0
     my1 = ip[I_MY1] != 0
-    pnx = -fp[F_UZ]  # the plate's normal
-    pnz = fp[F_UX]
     cx, cz, pvx, pvz, om = fp[F_CX], fp[F_CZ], fp[F_VX], fp[F_VZ], fp[F_OM]
     bad = -1
     for i in range(nr):
@@ -650,8 +673,8 @@ def _kick(pos, vel, mass, rho, sig, kind, acc, cont, damp, force, fp, ip):
         fz = acc[i, 5]
         pn = cont[i, 1]
         dp = 0.0
-        gnx = pn * pnx  # the guarded face's outward normal
-        gnz = pn * pnz
+        gnx = cont[i, 2]  # the guarded face's outward normal
+        gnz = cont[i, 3]
         if pn != 0.0:  # the guard: no approach faster than the plate's rigid motion there
             vn = ((nvx - pvx + om * (pos[i, 2] - cz)) * gnx
                   + (nvz - pvz - om * (pos[i, 0] - cx)) * gnz)
@@ -703,11 +726,15 @@ def _sides(pos, kind, side, fp, ip):
     """Side of the plate of every real granular particle: +1 / -1 on the side its normal
     points to / the other, where it lies over the plate (|(r - c) . u| <= a along the chord,
     |y| <= b, or any y in the slab) within the side reach (2h + t/2) of the mid-plane, 0
-    elsewhere (the 2D side test)."""
+    elsewhere (the 2D side test). A curved leg (an arc of radius R about the body point (0,
+    q_c), bulging towards sg n): +1 outside the arc's circle, -1 inside, where the particle
+    lies within the arc's angular span and within the reach of the mid-arc."""
     a = fp[F_PA]
     b = fp[F_PB]
     reach = fp[F_SREACH]
     slab = ip[I_SLAB] != 0
+    arc = ip[I_ARC] != 0
+    rad, qc, sg, cphi = fp[F_ARCR], fp[F_ARCQC], fp[F_ARCSG], fp[F_ARCCOS]
     cx, cz, ux, uz = fp[F_CX], fp[F_CZ], fp[F_UX], fp[F_UZ]
     for i in range(ip[I_NR]):
         if kind[i] != SOIL:
@@ -716,7 +743,13 @@ def _sides(pos, kind, side, fp, ip):
         rz = pos[i, 2] - cz
         dn = -rx * uz + rz * ux
         s = 0.0
-        if abs(rx * ux + rz * uz) <= a and (slab or abs(pos[i, 1]) <= b) and abs(dn) < reach:
+        if arc:
+            su = rx * ux + rz * uz
+            dq = sg * (dn - qc)
+            rr = math.sqrt(su * su + dq * dq)
+            if dq >= rr * cphi and (slab or abs(pos[i, 1]) <= b) and abs(rr - rad) < reach:
+                s = 1.0 if rr > rad else -1.0
+        elif abs(rx * ux + rz * uz) <= a and (slab or abs(pos[i, 1]) <= b) and abs(dn) < reach:
             s = 1.0 if dn > 0.0 else -1.0
         side[i] = s
 
@@ -735,12 +768,12 @@ def _max_disp2(pos, pb, kind, nr):
 
 
 @njit(cache=True)
-def steps3d(pose, damp, forces, pos, vel, gv, rho, mass, sig, kind, nz, dcl, grd, side, src,
-            gs, go, bo, lidx, pb, cell_start, cell_idx, ss, sso, sb, sbo, fss, fsb, wsb, lg,
+def steps3d(pose, damp, forces, pos, vel, gv, rho, mass, sig, kind, nz, wn, dcl, grd, side,
+            src, gs, go, bo, bn, lidx, pb, cell_start, cell_idx, ss, sso, sb, sbo, fss, fsb, wsb, lg,
             acc, cont, bacc, psig, fp, ip):
     """Advance len(pose) steps: per step the plate (its frame from ``pose[s]``, a
     :data:`POSE` row; markers ``lidx`` at c + bo[:, 0] u + bo[:, 2] n, y = bo[:, 1], moving
-    rigidly), its sides, the lists (rebuilt with the ghosts when a particle moved half the
+    rigidly, their faces' outward normals wn = bn[:, 0] u + bn[:, 1] n), its sides, the lists (rebuilt with the ghosts when a particle moved half the
     skin), the boundary state, pass 1, the boundary state again, pass 2 with damping
     damp[s]; forces[s] = force of the real granular particles on the whole (real + ghost)
     plate. Returns (steps done, code): OK; UNSTABLE (ip bad: the particle); PAIRS_FULL or
@@ -774,28 +807,30 @@ def steps3d(pose, damp, forces, pos, vel, gv, rho, mass, sig, kind, nz, dcl, grd
                 vel[w, 0] = pvx - om * (z - cz)
                 vel[w, 1] = 0.0
                 vel[w, 2] = pvz + om * (x - cx)
+                wn[w, 0] = bn[kk, 0] * ux - bn[kk, 1] * uz
+                wn[w, 1] = bn[kk, 0] * uz + bn[kk, 1] * ux
             _sides(pos, kind, side, fp, ip)
         if ip[I_BUILDS] == 0 or _max_disp2(pos, pb, kind, nr) > thr:
             ng = _make_ghosts(pos, kind, src, gs, go, fp, ip)
             if ng < 0:
                 return s, GHOSTS_FULL
             ip[I_NG] = ng
-            _update_ghosts(pos, vel, gv, rho, mass, sig, kind, nz, dcl, grd, side, src, gs, go,
+            _update_ghosts(pos, vel, gv, rho, mass, sig, kind, nz, wn, dcl, grd, side, src, gs, go,
                            ip)
             if not _build_pairs(pos, kind, cell_start, cell_idx, ss, sso, sb, sbo, fp, ip):
                 ip[I_BUILDS] = 0
                 return s, PAIRS_FULL
             pb[:nr] = pos[:nr]
             ip[I_BUILDS] += 1
-        _update_ghosts(pos, vel, gv, rho, mass, sig, kind, nz, dcl, grd, side, src, gs, go, ip)
-        _boundary_pass(pos, vel, gv, rho, sig, kind, nz, dcl, sb, sbo, wsb, False, bacc, fp, ip)
-        _update_ghosts(pos, vel, gv, rho, mass, sig, kind, nz, dcl, grd, side, src, gs, go, ip)
-        _strain_pass(pos, vel, gv, rho, mass, sig, kind, nz, dcl, side, ss, sso, sb, sbo, fss,
+        _update_ghosts(pos, vel, gv, rho, mass, sig, kind, nz, wn, dcl, grd, side, src, gs, go, ip)
+        _boundary_pass(pos, vel, gv, rho, sig, kind, wn, dcl, sb, sbo, wsb, False, bacc, fp, ip)
+        _update_ghosts(pos, vel, gv, rho, mass, sig, kind, nz, wn, dcl, grd, side, src, gs, go, ip)
+        _strain_pass(pos, vel, gv, rho, mass, sig, kind, wn, dcl, side, ss, sso, sb, sbo, fss,
                      fsb, lg, fp, ip)
-        _update_ghosts(pos, vel, gv, rho, mass, sig, kind, nz, dcl, grd, side, src, gs, go, ip)
-        _boundary_pass(pos, vel, gv, rho, sig, kind, nz, dcl, sb, sbo, wsb, True, bacc, fp, ip)
-        _update_ghosts(pos, vel, gv, rho, mass, sig, kind, nz, dcl, grd, side, src, gs, go, ip)
-        _accel_pass(pos, vel, rho, mass, sig, psig, kind, nz, dcl, grd, ss, sso, sb, sbo, fss,
+        _update_ghosts(pos, vel, gv, rho, mass, sig, kind, nz, wn, dcl, grd, side, src, gs, go, ip)
+        _boundary_pass(pos, vel, gv, rho, sig, kind, wn, dcl, sb, sbo, wsb, True, bacc, fp, ip)
+        _update_ghosts(pos, vel, gv, rho, mass, sig, kind, nz, wn, dcl, grd, side, src, gs, go, ip)
+        _accel_pass(pos, vel, rho, mass, sig, psig, kind, nz, wn, dcl, grd, ss, sso, sb, sbo, fss,
                     fsb, acc, cont, fp, ip)
         f3[:] = 0.0
         bad = _kick(pos, vel, mass, rho, sig, kind, acc, cont, damp[s], f3, fp, ip)
@@ -815,7 +850,9 @@ class Scene3D:
     (n, 6), velocities (n, 3); plate markers (kind LEG): the face they belong to (``nz``: +1
     the face the plate's normal points out of, -1 the other), their offset from the
     mid-plane along it (dcl), guard flag, body coordinates (``bo``: along the chord, y, along
-    the normal from the plate's centre; markers in the order of ``lidx``). ``mirror``: (x = 0, y = 0, y = ly)
+    the normal from the plate's centre; markers in the order of ``lidx``), their faces'
+    outward normals in the body frame (``bn``: along the chord, along the normal; None: the
+    flat plate's (0, nz)). ``mirror``: (x = 0, y = 0, y = ly)
     symmetry planes; ``box``: (x_lo, x_hi, y_hi, z_lo) outside which grains are lost;
     ``plate``: half length a, half width b, thickness t, slab (the plate spans all y)."""
 
@@ -838,6 +875,7 @@ class Scene3D:
     depth: float = 0.1
     gravity: float = G
     meta: dict = field(default_factory=dict)
+    bn: np.ndarray | None = None
 
     @property
     def lidx(self) -> np.ndarray:
@@ -874,7 +912,8 @@ def plate_scene(medium: str | GranularMaterial = "3 mm glass CP", *, dx: float =
                 slab: int | None = None, half_x: float | None = None,
                 half_y: float | None = None, depth: float | None = None,
                 mirror_x: bool = True, z0: float | None = None,
-                with_plate: bool = True, pose: tuple | None = None) -> Scene3D:
+                with_plate: bool = True, pose: tuple | None = None,
+                curvature: float = 0.0) -> Scene3D:
     """The bed and plate of the 3D plate test, a quarter of it (symmetry planes x = 0, y = 0).
 
     The plate (``length`` along x, ``width`` along y, ``thickness``) is centred at x = y = 0
@@ -889,15 +928,25 @@ def plate_scene(medium: str | GranularMaterial = "3 mm glass CP", *, dx: float =
 
     ``pose`` (cx, cz, phi): the plate's start in any other placement (centre, m; chord angle
     from +x towards +z, rad; see :data:`POSE`), e.g. the vertical plate of
-    :func:`plate_drag3d` or the leg of :func:`flat_leg3d`; it must lie above the floor, and a
+    :func:`plate_drag3d` or the leg of :func:`leg3d`; it must lie above the floor, and a
     plate not centred on x = 0 horizontally needs both halves of the bed (``mirror_x``
-    False)."""
+    False).
+
+    ``curvature`` k (as :class:`terradyn.geometry.ArcLeg`'s: chord / (2 radius), in [-1, 1]):
+    a curved leg instead of the flat plate, a circular arc of that chord (``length``),
+    ``thickness`` and ``width`` bulging towards -n for k > 0 (the C leg hanging down with n
+    = +x: its convex side towards -x) and +n for k < 0 (the reverse C). Its markers lie on
+    arcs concentric with the mid-arc, ``wall_layers`` per face from dx/2 inside it, spaced
+    about dx along each arc; each carries its face's outward normal (radial), the guard keeps
+    grains off the tangent plane of their nearest guarded marker, and the side test is
+    inside / outside the arc's circle."""
     mat = _material(medium)
     cfg = config or SPHConfig(dx=dx)
     dx = cfg.dx
     positive("length", length, "m")
     positive("width", width, "m")
     positive("thickness", thickness, "m")
+    in_range("curvature", curvature, -1.0, 1.0, "(chord / (2 radius))")
     layers = cfg.wall_layers
     hx = half_x if half_x is not None else 3.0 * length
     if slab is not None:
@@ -947,16 +996,42 @@ def plate_scene(medium: str | GranularMaterial = "3 mm glass CP", *, dx: float =
     else:
         nym = max(int(round(b / dx)), 1)
         ym = (np.arange(nym) + 0.5) * (b / nym)
-    MX, MY = np.meshgrid(xm, ym, indexing="ij")
-    MX, MY = MX.ravel(), MY.ravel()
-    guard_xy = (np.abs(MX) < a - 1.5 * dx) & ((slab is not None) | (np.abs(MY) < b - 1.5 * dx))
+    arc = None
     mk = []
-    for sd in (1.0, -1.0):
-        for k in range(layers):
-            d = 0.5 * t - (k + 0.5) * dx
-            mk.append(np.stack([MX, MY, np.full_like(MX, sd * d), np.full_like(MX, sd),
-                                np.full_like(MX, d), guard_xy.astype(float)], -1))
-    mk = np.concatenate(mk) if with_plate else np.zeros((0, 6))
+    if curvature == 0.0:
+        MX, MY = np.meshgrid(xm, ym, indexing="ij")
+        MX, MY = MX.ravel(), MY.ravel()
+        guard_xy = (np.abs(MX) < a - 1.5 * dx) & ((slab is not None) | (np.abs(MY) < b - 1.5 * dx))
+        for sd in (1.0, -1.0):
+            for k in range(layers):
+                d = 0.5 * t - (k + 0.5) * dx
+                mk.append(np.stack([MX, MY, np.full_like(MX, sd * d), np.full_like(MX, sd),
+                                    np.full_like(MX, d), guard_xy.astype(float),
+                                    np.zeros_like(MX), np.full_like(MX, sd)], -1))
+    else:
+        if mirror_x:
+            raise InputError("mirror_x", "a curved leg needs both halves of the bed "
+                                         "(mirror_x=False)")
+        rad = a / abs(curvature)
+        half = math.asin(abs(curvature))
+        sg = -math.copysign(1.0, curvature)  # the bulge is towards sg n
+        qc = -sg * rad * math.cos(half)
+        arc = {"r": rad, "qc": qc, "sg": sg, "half_angle": half}
+        for sd in (1.0, -1.0):  # +1 the convex (outer) face
+            for k in range(layers):
+                d = 0.5 * t - (k + 0.5) * dx
+                rr = rad + sd * d
+                na = max(int(round(rr * 2.0 * half / dx)), 1)
+                psi = -half + (np.arange(na) + 0.5) * (2.0 * half / na)
+                PS, MY = np.meshgrid(psi, ym, indexing="ij")
+                PS, MY = PS.ravel(), MY.ravel()
+                er_s, er_q = np.sin(PS), sg * np.cos(PS)
+                guard = ((rad * (half - np.abs(PS)) > 1.5 * dx)
+                         & ((slab is not None) | (np.abs(MY) < b - 1.5 * dx)))
+                mk.append(np.stack([rr * er_s, MY, qc + rr * er_q, np.full_like(PS, sd),
+                                    np.full_like(PS, d), guard.astype(float), sd * er_s,
+                                    sd * er_q], -1))
+    mk = np.concatenate(mk) if with_plate else np.zeros((0, 8))
     if pose is None:  # the plate test: horizontal, over x = 0, dx/2 above the grains
         pose = (0.0, z0 if z0 is not None else 0.5 * t + 0.5 * dx, 0.0)
     cx0, cz0, phi0 = (float(v) for v in pose)
@@ -965,15 +1040,24 @@ def plate_scene(medium: str | GranularMaterial = "3 mm glass CP", *, dx: float =
         raise InputError("mirror_x", "a plate not centred horizontally on x = 0 needs both "
                                      "halves of the bed (mirror_x=False)")
     lowest = cz0 - a * abs(math.sin(phi0)) - 0.5 * t * abs(math.cos(phi0))
+    if arc is not None and len(mk):
+        lowest = float(np.min(cz0 + mk[:, 0] * math.sin(phi0) + mk[:, 2] * math.cos(phi0))) \
+            - 0.5 * dx
     if lowest <= -D:
         raise InputError("pose", f"the plate's lowest point ({-lowest * 100:g} cm deep) must lie "
                                  f"inside the bed ({D * 100:g} cm deep)")
     ux, uz = math.cos(phi0), math.sin(phi0)
     rxs, rzs = soil[:, 0] - cx0, soil[:, 2] - cz0
     # granular particles inside the plate's body at the start (none when it starts above)
-    inside = ((np.abs(rxs * ux + rzs * uz) <= a + 0.5 * dx)
-              & ((slab is not None) | (soil[:, 1] <= b + 0.5 * dx))
-              & (np.abs(-rxs * uz + rzs * ux) <= 0.5 * t + 0.5 * dx))
+    su, sq = rxs * ux + rzs * uz, -rxs * uz + rzs * ux
+    if arc is None:
+        inside = ((np.abs(su) <= a + 0.5 * dx) & (np.abs(sq) <= 0.5 * t + 0.5 * dx))
+    else:
+        dq = arc["sg"] * (sq - arc["qc"])
+        rr = np.hypot(su, dq)
+        inside = ((dq >= rr * math.cos(arc["half_angle"]) - 0.5 * dx)
+                  & (np.abs(rr - arc["r"]) <= 0.5 * t + 0.5 * dx))
+    inside &= (slab is not None) | (soil[:, 1] <= b + 0.5 * dx)
     mpos = np.stack([cx0 + mk[:, 0] * ux - mk[:, 2] * uz, mk[:, 1],
                      cz0 + mk[:, 0] * uz + mk[:, 2] * ux], -1)
     if with_plate:
@@ -1000,12 +1084,12 @@ def plate_scene(medium: str | GranularMaterial = "3 mm glass CP", *, dx: float =
     meta = {"scene": "plate3d", "dx_m": dx, "half_x_m": hx, "half_y_m": hy, "depth_m": D,
             "slab_layers": slab, "mirror_x": mirror_x, "plate_m": [length, width, thickness],
             "z0_m": zc0, "granular": ns, "wall": nw, "markers": nm, "wall_top_m": top,
-            "pose0": [cx0, cz0, phi0]}
+            "pose0": [cx0, cz0, phi0], "curvature": float(curvature)}
     return Scene3D(pos, kind, mass, rho, sig, np.zeros((n, 3)), mat, cfg, nzv, dcl, grd,
                    np.ascontiguousarray(mk[:, :3]), mirror=(mirror_x, True, slab is not None), ly=hy, box=box,
                    plate={"a": a, "b": b, "t": t, "slab": slab is not None, "z0": zc0,
-                          "pose0": (cx0, cz0, phi0)},
-                   depth=D, meta=meta)
+                          "pose0": (cx0, cz0, phi0), "arc": arc},
+                   depth=D, meta=meta, bn=np.ascontiguousarray(mk[:, 6:8]))
 
 
 # ----------------------------------------------------------------------------- the solver
@@ -1036,6 +1120,7 @@ class Solver3D:
         self.sig = np.zeros((n, 6))
         self.kind = np.full(n, LOST, np.int8)
         self.nz = np.zeros(n)
+        self.wn = np.zeros((n, 2))
         self.dcl = np.zeros(n)
         self.grd = np.zeros(n)
         self.side = np.zeros(n)
@@ -1053,6 +1138,9 @@ class Solver3D:
         self.go = np.zeros((n, 3))
         self.lidx = sc.lidx
         self.bo = np.ascontiguousarray(sc.bo, dtype=np.float64)
+        bn = sc.bn if sc.bn is not None else np.stack(
+            [np.zeros(len(self.lidx)), sc.nz[self.lidx]], -1)
+        self.bn = np.ascontiguousarray(bn, dtype=np.float64)
         self.pb = np.full((nr, 3), np.inf)
         n_soil = int(np.sum(sc.kind == SOIL))
         n_bnd = nr - n_soil
@@ -1064,7 +1152,7 @@ class Solver3D:
         self.lg = np.zeros((n, 10))
         self.psig = np.zeros((n, 6))
         self.acc = np.zeros((n, 6))
-        self.cont = np.zeros((n, 2))
+        self.cont = np.zeros((n, 4))
         self.bacc = np.zeros((n, 11))
         # the cell grid: cells >= the list radius over everything that may move
         p = sc.pos
@@ -1081,6 +1169,10 @@ class Solver3D:
         self.cell_idx = np.zeros(n, np.int64)
         plate = sc.plate or {"a": 0.0, "b": 0.0, "t": 0.0, "slab": False}
         pose0 = plate.get("pose0", (0.0, 0.0, 0.0))  # overwritten by every step's pose
+        arc = plate.get("arc") or {"r": 0.0, "qc": 0.0, "sg": 0.0, "half_angle": 0.0}
+        ux0, uz0 = math.cos(pose0[2]), math.sin(pose0[2])
+        self.wn[self.lidx, 0] = self.bn[:, 0] * ux0 - self.bn[:, 1] * uz0
+        self.wn[self.lidx, 1] = self.bn[:, 0] * uz0 + self.bn[:, 1] * ux0
         gap = (0.25 if cfg.contact_gap is None else cfg.contact_gap) * cfg.dx
         val = dict(h=self.h, dt=self.dt, shear_mod=mat.shear_modulus, bulk_mod=mat.bulk_modulus,
                    alpha_phi=mat.alpha_phi, k_c=mat.k_c, rho_min=0.9 * mat.density,
@@ -1092,12 +1184,14 @@ class Solver3D:
                    rlist=self.rlist, x_hi_box=sc.box[1], y_hi_box=sc.box[2], z_lo_box=sc.box[3],
                    side_reach=2.0 * self.h + 0.5 * plate["t"], x_lo_box=sc.box[0],
                    p_cx=pose0[0], p_cz=pose0[1], p_ux=math.cos(pose0[2]),
-                   p_uz=math.sin(pose0[2]), p_vx=0.0, p_vz=0.0, p_om=0.0)
+                   p_uz=math.sin(pose0[2]), p_vx=0.0, p_vz=0.0, p_om=0.0, arc_r=arc["r"],
+                   arc_qc=arc["qc"], arc_sg=arc["sg"], arc_cos=math.cos(arc["half_angle"]))
         self.fp = np.array([val[k] for k in FP], dtype=np.float64)
         ival = dict(nr=nr, ng=0, nss=0, nsb=0, ncx=ncell[0], ncy=ncell[1], ncz=ncell[2],
                     mirror_x=int(sc.mirror[0]), mirror_y0=int(sc.mirror[1]),
                     mirror_y1=int(sc.mirror[2]), slab=int(bool(plate["slab"])), builds=0,
-                    has_plate=int(len(self.lidx) > 0), bad=-1, lost=0)
+                    has_plate=int(len(self.lidx) > 0), bad=-1, lost=0,
+                    arc=int(plate.get("arc") is not None))
         self.ip = np.array([ival[k] for k in IP], dtype=np.int64)
         self.t = 0.0
         self.step_count = 0
@@ -1129,7 +1223,7 @@ class Solver3D:
             extra = max(len(self.pos) - self.nr, 64)
             n = len(self.pos) + extra
             for name in ("pos", "vel", "gv", "gs", "go", "sig", "lg", "acc", "cont", "bacc",
-                         "psig"):
+                         "psig", "wn"):
                 a = getattr(self, name)
                 b = np.zeros((n,) + a.shape[1:])
                 b[:len(a)] = a
@@ -1163,8 +1257,8 @@ class Solver3D:
         while done < len(pose):
             d, code = steps3d(pose[done:], damp[done:], out[done:], self.pos,
                               self.vel, self.gv, self.rho, self.mass, self.sig, self.kind,
-                              self.nz, self.dcl, self.grd, self.side, self.src, self.gs,
-                              self.go, self.bo, self.lidx, self.pb, self.cell_start,
+                              self.nz, self.wn, self.dcl, self.grd, self.side, self.src,
+                              self.gs, self.go, self.bo, self.bn, self.lidx, self.pb, self.cell_start,
                               self.cell_idx, self.ss, self.sso, self.sb, self.sbo, self.fss,
                               self.fsb, self.wsb,
                               self.lg, self.acc, self.cont, self.bacc, self.psig, self.fp,
@@ -1352,23 +1446,35 @@ def plate_drag3d(medium: str | GranularMaterial = "3 mm glass CP", *, dx: float 
             "lost": s.lost, "wall_s": time.perf_counter() - t_wall, "scene": sc.meta}
 
 
-def flat_leg3d(medium: str | GranularMaterial = "poppy LP", *, dx: float = 4e-3,
-               config: SPHConfig | None = None, slab: int | None = None,
-               half_y: float | None = None, omega: float = 1.1, hip_height: float = 2.0 * CM,
-               length: float = 7.62 * CM, width: float = PLATE_WIDTH,
-               thickness: float = PLATE_THICKNESS, pad: float = 0.06, n_theta: int = 271,
-               realization: int = 0, progress=None) -> dict:
-    """The flat leg of the rotating-leg test (:func:`terradyn.sph.suite.leg_vs_measured`:
-    hip ``hip_height`` above the surface, omega rad/s, -135..135 deg sampled at ``n_theta``
-    angles) in 3D: a rigid plate ``length`` x ``width`` x ``thickness`` hanging from the hip,
-    turning clockwise (theta = 0: straight down; the tip sweeps backwards and the bed pushes
-    the leg forwards). Half domain (symmetry plane y = 0); ``slab``: the plane-strain
-    configuration (the leg spans a slab between two symmetry planes: the 2D test in this
-    code). Only the part of the stroke where the leg is within 2h + dx of the bed is run (as
-    in 2D), after the bed has settled with the leg above it. Bed as the 2D test's
-    (:func:`terradyn.sph.api.bed_extent`: the leg's path below the surface plus ``pad``).
-    Returns theta (rad), Fx (thrust, + forward), Fz (lift, + up) in N, peaks, counts and
-    timings."""
+#: The rotating-leg test's leg shapes in 3D: curvature (chord / (2 radius)) as
+#: :mod:`terradyn.geometry`'s presets.
+LEG3D_SHAPES = {"flat": 0.0, "c": 1.0, "reverse-c": -1.0}
+
+
+def leg3d(medium: str | GranularMaterial = "poppy LP", *, shape: str = "flat",
+          dx: float = 4e-3, config: SPHConfig | None = None, slab: int | None = None,
+          half_y: float | None = None, omega: float = 1.1, hip_height: float = 2.0 * CM,
+          length: float = 7.62 * CM, width: float = PLATE_WIDTH,
+          thickness: float = PLATE_THICKNESS, pad: float = 0.06, n_theta: int = 271,
+          realization: int = 0, curvature: float | None = None, progress=None) -> dict:
+    """A leg of the rotating-leg test (:func:`terradyn.sph.suite.leg_vs_measured`: hip
+    ``hip_height`` above the surface, omega rad/s, -135..135 deg sampled at ``n_theta``
+    angles) in 3D: a rigid leg of chord ``length``, ``width`` and ``thickness`` hanging from
+    the hip, ``shape`` one of :data:`LEG3D_SHAPES` (flat: a plate; c / reverse-c: the half
+    circle bulging towards / away from the tip's motion, as
+    :func:`terradyn.geometry.c_leg`), turning clockwise (theta = 0: straight down; the tip
+    sweeps backwards and the bed pushes the leg forwards). Half domain (symmetry plane y =
+    0); ``slab``: the plane-strain configuration (the leg spans a slab between two symmetry
+    planes: the 2D test in this code). Only the part of the stroke where the leg is within
+    2h + dx of the bed is run (as in 2D), after the bed has settled with the leg above it.
+    Bed as the 2D test's (:func:`terradyn.sph.api.bed_extent`: the leg's path below the
+    surface plus ``pad``). ``curvature``: any other arc (chord / (2 radius), in [-1, 1];
+    overrides ``shape``). Returns theta (rad), Fx (thrust, + forward), Fz (lift, + up) in
+    N, peaks, counts and timings."""
+    if shape not in LEG3D_SHAPES:
+        raise InputError("shape", f"must be one of {', '.join(LEG3D_SHAPES)}, got {shape!r}")
+    k = LEG3D_SHAPES[shape] if curvature is None else float(curvature)
+    in_range("curvature", k, -1.0, 1.0, "(chord / (2 radius))")
     positive("omega", omega, "rad/s")
     positive("length", length, "m")
     integer("n_theta", n_theta, 3)
@@ -1379,8 +1485,13 @@ def flat_leg3d(medium: str | GranularMaterial = "poppy LP", *, dx: float = 4e-3,
     half_x = reach + pad
     D = length - hip_height + pad
     theta = np.linspace(-135 * math.pi / 180, 135 * math.pi / 180, n_theta)
-    # lowest point of the plate (its tip corner) against the surface
-    low = hip_height - length * np.cos(theta) - 0.5 * thickness * np.abs(np.sin(theta))
+    if k == 0.0:  # lowest point of the plate (its tip corner) against the surface
+        low = hip_height - length * np.cos(theta) - 0.5 * thickness * np.abs(np.sin(theta))
+    else:  # lowest point of the arc's outline, hip frame (x forward, z up, hanging down)
+        g = ArcLeg(width, 2, length, k).outline(400)
+        c, s_ = np.cos(theta)[:, None], np.sin(theta)[:, None]
+        low = hip_height + np.min(-g[None, :, 0] * s_ + g[None, :, 1] * c, axis=1) \
+            - 0.5 * thickness
     touch = np.flatnonzero(low < margin)
     if len(touch) == 0:
         raise InputError("hip_height", "the leg never reaches the bed")
@@ -1397,7 +1508,7 @@ def flat_leg3d(medium: str | GranularMaterial = "poppy LP", *, dx: float = 4e-3,
     p0 = pose_at(np.array([th0]))[0]
     sc = plate_scene(medium, config=cfg, length=length, width=width, thickness=thickness,
                      slab=slab, half_x=half_x, half_y=half_y, depth=D, mirror_x=False,
-                     pose=(p0[0], p0[1], p0[2]))
+                     pose=(p0[0], p0[1], p0[2]), curvature=k)
     t_wall = time.perf_counter()
     s = Solver3D(sc, plate_speed=omega * length)
     T = (float(theta[i1]) - th0) / omega
@@ -1417,8 +1528,13 @@ def flat_leg3d(medium: str | GranularMaterial = "poppy LP", *, dx: float = 4e-3,
     return {"theta": theta, "Fx": Fx, "Fz": Fz, "peak_lift": float(Fz.max()),
             "peak_thrust": float(Fx.max()), "force_factor": fac, "steps": nsteps,
             "dt_s": s.dt, "particles": s.nr, "ghosts": int(s.ip[I_NG]), "lost": s.lost,
-            "wall_s": time.perf_counter() - t_wall, "scene": sc.meta,
+            "wall_s": time.perf_counter() - t_wall, "scene": sc.meta, "shape": shape,
             "window_deg": [float(theta[i0] * 180 / math.pi), float(theta[i1] * 180 / math.pi)]}
+
+
+def flat_leg3d(medium: str | GranularMaterial = "poppy LP", **kw) -> dict:
+    """:func:`leg3d` with the flat leg."""
+    return leg3d(medium, shape="flat", **kw)
 
 
 def shape_factor(length: float, width: float, friction: float) -> float:

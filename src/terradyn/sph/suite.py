@@ -169,18 +169,18 @@ def rig_table(rig: dict, name: str = "SPH rig", method: str = "linear"):
                        "SPH virtual plate rig (terradyn.sph.suite.rig_point)")
 
 
-def flat_leg_scores(medium: str, theta_deg, fz, fx, omega: float = 1.1) -> dict:
-    """A flat-leg curve (e.g. :func:`terradyn.sph.plate3d.flat_leg3d`'s) against Li 2013 Fig.
-    S5's measured one, as :func:`leg_vs_measured` scores the 2D leg: measured peaks and the RMS
-    differences over the measured angles (N), with RFT's (Table S5 grid, linear) beside them.
-    Empty for a medium without measured curves."""
+def leg_scores(medium: str, theta_deg, fz, fx, omega: float = 1.1, leg: str = "flat") -> dict:
+    """A leg's curve (e.g. :func:`terradyn.sph.plate3d.leg3d`'s) against Li 2013 Fig. S5's
+    measured one for that leg (flat, c or reverse-c), as :func:`leg_vs_measured` scores the
+    2D leg: measured peaks and the RMS differences over the measured angles (N), with RFT's
+    (Table S5 grid, linear) beside them. Empty for a medium or leg without measured curves."""
     from ..rft import simulate as rft_simulate
 
     exp = measured_legs()
-    e = exp[(exp.medium == medium) & (exp.leg == "flat")]
+    e = exp[(exp.medium == medium) & (exp.leg == leg)]
     if not len(e):
         return {}
-    rft = rft_simulate(make_leg("flat"), Rotation(omega=omega, hip_height=2 * CM,
+    rft = rft_simulate(make_leg(leg), Rotation(omega=omega, hip_height=2 * CM,
                                                   theta_start=-135 * DEG, theta_end=135 * DEG,
                                                   n_theta=271),
                        stress_model(medium, "table", interp="linear"))
