@@ -36,8 +36,10 @@ geometry is the only change:
 Serial (one thread: Numba ``njit``); each granular pair is visited once per pass and acts on
 both particles. Entry points: :func:`plate_scene` (the bed and plate), :func:`plate_push3d`
 (the plate test of :data:`terradyn.sph.calibration.PLATE_TEST`, its alpha_z as the 2D
-``plate_slope`` fits it). ``benchmarks/sph_plate3d.py`` runs the study (docs/sph.md, "3D plate
-test").
+``plate_slope`` fits it), :func:`plate_drag3d` (the rig's vertical plate pushed sideways) and
+:func:`leg3d` (the rotating-leg test: flat, C or reverse-C leg; curved legs carry per-marker
+face normals). ``benchmarks/sph_plate3d.py``, ``sph_plate_drag3d.py`` and ``sph_leg3d.py`` run
+the studies (docs/sph.md).
 """
 from __future__ import annotations
 
