@@ -266,7 +266,7 @@ def test_flat_leg_3d_bad_requests_are_one_line_errors():
         P.flat_leg3d("poppy LP", omega=0.0)
     with pytest.raises(InputError, match="hip_height"):
         P.flat_leg3d("poppy LP", hip_height=0.2)
-    with pytest.raises(InputError, match="shape"):
+    with pytest.raises(InputError, match="leg"):
         P.leg3d("poppy LP", shape="oval")
     with pytest.raises(InputError, match="curvature"):
         P.leg3d("poppy LP", curvature=1.5)

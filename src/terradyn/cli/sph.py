@@ -331,8 +331,7 @@ def leg3d_cmd(medium: str = _MEDIUM, density_kg_m3: Optional[float] = _DENSITY,
     from ..sph.suite import leg_scores, measured_legs
     from ..units import DEG
 
-    if leg not in plate3d.LEG3D_SHAPES:
-        raise InputError("leg", f"must be one of {', '.join(plate3d.LEG3D_SHAPES)}, got {leg!r}")
+    plate3d.leg_curvature(leg)  # an unknown leg: an error before any work
     cfg = SPHConfig(dx=_dx(dx_mm))
     if slab is not None:
         integer("slab", slab, 4)

@@ -1453,6 +1453,13 @@ def plate_drag3d(medium: str | GranularMaterial = "3 mm glass CP", *, dx: float 
 LEG3D_SHAPES = {"flat": 0.0, "c": 1.0, "reverse-c": -1.0}
 
 
+def leg_curvature(shape: str) -> float:
+    """The curvature of a :data:`LEG3D_SHAPES` name (else a one-line :class:`InputError`)."""
+    if shape not in LEG3D_SHAPES:
+        raise InputError("leg", f"must be one of {', '.join(LEG3D_SHAPES)}, got {shape!r}")
+    return LEG3D_SHAPES[shape]
+
+
 def leg3d(medium: str | GranularMaterial = "poppy LP", *, shape: str = "flat",
           dx: float = 4e-3, config: SPHConfig | None = None, slab: int | None = None,
           half_y: float | None = None, omega: float = 1.1, hip_height: float = 2.0 * CM,
@@ -1473,9 +1480,7 @@ def leg3d(medium: str | GranularMaterial = "poppy LP", *, shape: str = "flat",
     surface plus ``pad``). ``curvature``: any other arc (chord / (2 radius), in [-1, 1];
     overrides ``shape``). Returns theta (rad), Fx (thrust, + forward), Fz (lift, + up) in
     N, peaks, counts and timings."""
-    if shape not in LEG3D_SHAPES:
-        raise InputError("shape", f"must be one of {', '.join(LEG3D_SHAPES)}, got {shape!r}")
-    k = LEG3D_SHAPES[shape] if curvature is None else float(curvature)
+    k = leg_curvature(shape) if curvature is None else float(curvature)
     in_range("curvature", k, -1.0, 1.0, "(chord / (2 radius))")
     positive("omega", omega, "rad/s")
     positive("length", length, "m")
@@ -1530,7 +1535,8 @@ def leg3d(medium: str | GranularMaterial = "poppy LP", *, shape: str = "flat",
     return {"theta": theta, "Fx": Fx, "Fz": Fz, "peak_lift": float(Fz.max()),
             "peak_thrust": float(Fx.max()), "force_factor": fac, "steps": nsteps,
             "dt_s": s.dt, "particles": s.nr, "ghosts": int(s.ip[I_NG]), "lost": s.lost,
-            "wall_s": time.perf_counter() - t_wall, "scene": sc.meta, "shape": shape,
+            "wall_s": time.perf_counter() - t_wall, "scene": sc.meta,
+            "shape": shape if curvature is None else None, "curvature": k,
             "window_deg": [float(theta[i0] * 180 / math.pi), float(theta[i1] * 180 / math.pi)]}
 
 
