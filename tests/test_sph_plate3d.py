@@ -287,3 +287,54 @@ def test_leg3d_figure_labels_what_it_draws(tmp_path):
     assert [a.get_ylabel() for a in fig.axes] == ["lift $F_z$ (N)", "thrust $F_x$ (N)"]
     leg3d(pts, {"Fz": (th, th), "Fx": (th, th)}, tmp_path / "f.png")
     assert (tmp_path / "f.png").stat().st_size > 1000
+
+
+def _pushed_solver(steps=60):
+    # a plate with both halves in x and the y = 0 mirror (ghosts), already in the bed
+    cfg = SPHConfig(dx=5e-3, settle_time=0.0)
+    sc = P.plate_scene("3 mm glass CP", config=cfg, half_x=0.03, half_y=0.018, depth=0.02,
+                       mirror_x=False, z0=-0.002)
+    s = P.Solver3D(sc, plate_speed=0.2)
+    pose = np.zeros((steps, 6))
+    pose[:, 1] = -0.002 - 0.2 * s.dt * np.arange(steps)
+    pose[:, 4] = -0.2
+    return s, s.advance(pose, np.zeros(steps))
+
+
+def test_parallel_pair_passes_write_only_into_neighbouring_chunks():
+    # the race-freedom condition of the three-phase chunk schedule: every pair the passes
+    # visit joins particles of the same or adjacent chunks (cell order), so chunks three
+    # apart never write to the same particle
+    s, _ = _pushed_solver(5)
+    q = int(s.ip[P.I_NCHUNK])
+    assert q >= 3  # the bed is split, so the passes do run in parallel
+    b = s.bounds[:q + 1]
+    assert np.all(np.diff(b) > 0) and b[-1] == np.sum(s.rank[:s.nr + s.ip[P.I_NG]] >= 0)
+    chunk = np.searchsorted(b, s.rank[:s.nr + s.ip[P.I_NG]], side="right") - 1
+    n = s.nr + int(s.ip[P.I_NG])
+    for lst, off in ((s.ss, s.sso), (s.sb, s.sbo)):
+        rows = np.repeat(np.arange(n), np.diff(off[:n + 1]))
+        cols = lst[:off[n]]
+        assert len(cols) > 0
+        assert np.abs(chunk[rows] - chunk[cols]).max() <= 1
+    # each granular pair listed once
+    rows = np.repeat(np.arange(n), np.diff(s.sso[:n + 1]))
+    pairs = np.sort(np.stack([rows, s.ss[:s.sso[n]]], 1), axis=1)
+    assert len(np.unique(pairs, axis=0)) == len(pairs)
+
+
+@pytest.mark.skipif(__import__("numba").config.NUMBA_NUM_THREADS < 2,
+                    reason="needs two Numba threads")
+def test_forces_do_not_depend_on_the_number_of_threads():
+    import numba
+    before = numba.get_num_threads()
+    try:
+        numba.set_num_threads(1)
+        s1, f1 = _pushed_solver()
+        numba.set_num_threads(2)
+        s2, f2 = _pushed_solver()
+    finally:
+        numba.set_num_threads(before)
+    assert np.abs(f1).max() > 0
+    np.testing.assert_array_equal(f1, f2)  # bitwise: fixed chunks and blocks, fixed sum order
+    np.testing.assert_array_equal(s1.pos, s2.pos)

@@ -33,8 +33,12 @@ geometry is the only change:
   the whole plate is 4 x the quarter's (the quarter's particles act on all markers, ghosts
   included, which by symmetry is the whole plate's force / 4).
 
-Serial (one thread: Numba ``njit``); each granular pair is visited once per pass and acts on
-both particles. Entry points: :func:`plate_scene` (the bed and plate), :func:`plate_push3d`
+Parallel without atomics (Numba ``prange``): particles are binned into cells ordered x
+slowest, the cell order is cut into chunks at least as long as any cell's neighbour reach, and
+each pair pass runs the chunks in three phases (chunks three apart at once), so two threads
+never write the same particle. Each granular pair is listed once (partner later in cell order)
+and acts on both particles; sums run in a fixed order, so the forces are bitwise the same on
+any number of threads (tested). Entry points: :func:`plate_scene` (the bed and plate), :func:`plate_push3d`
 (the plate test of :data:`terradyn.sph.calibration.PLATE_TEST`, its alpha_z as the 2D
 ``plate_slope`` fits it), :func:`plate_drag3d` (the rig's vertical plate pushed sideways) and
 :func:`leg3d` (the rotating-leg test: flat, C or reverse-C leg; curved legs carry per-marker
@@ -48,7 +52,7 @@ import time
 from dataclasses import dataclass, field
 
 import numpy as np
-from numba import njit
+from numba import njit, prange
 
 from ..errors import InputError, check_memory, in_range, integer, positive
 from ..units import CM, G
@@ -86,9 +90,12 @@ FP = ("h", "dt", "shear_mod", "bulk_mod", "alpha_phi", "k_c", "rho_min", "rho_ma
 #: r_x - c_x).
 POSE = ("cx", "cz", "phi", "vx", "vz", "om")
 IP = ("nr", "ng", "nss", "nsb", "ncx", "ncy", "ncz", "mirror_x", "mirror_y0", "mirror_y1",
-      "slab", "builds", "has_plate", "bad", "lost", "arc")
+      "slab", "builds", "has_plate", "bad", "lost", "arc", "nchunk")
 (I_NR, I_NG, I_NSS, I_NSB, I_NCX, I_NCY, I_NCZ, I_MX, I_MY0, I_MY1, I_SLAB, I_BUILDS, I_PLATE,
- I_BAD, I_LOST, I_ARC) = range(len(IP))
+ I_BAD, I_LOST, I_ARC, I_NCHUNK) = range(len(IP))
+#: Most chunks of the parallel pair passes (:func:`_chunk_bounds`), and the fixed blocks of
+#: the per-particle reductions (the kick's force): neither depends on the number of threads.
+MAX_CHUNKS_3D, N_BLOCKS_3D = 384, 64
 #: Kernel return codes.
 OK, UNSTABLE, PAIRS_FULL, GHOSTS_FULL = 0, 1, 2, 3
 
@@ -223,12 +230,12 @@ def _make_ghosts(pos, kind, src, gs, go, fp, ip):
     return g
 
 
-@njit(cache=True)
+@njit(cache=True, parallel=True)
 def _update_ghosts(pos, vel, gv, rho, mass, sig, kind, nz, wn, dcl, grd, side, src, gs, go, ip):
     """Refresh every ghost from its source (reflected position, velocities, marker normal and
     stress)."""
     nr = ip[I_NR]
-    for g in range(nr, nr + ip[I_NG]):
+    for g in prange(nr, nr + ip[I_NG]):
         s = src[g]
         sx = gs[g, 0]
         sy = gs[g, 1]
@@ -259,146 +266,208 @@ def _update_ghosts(pos, vel, gv, rho, mass, sig, kind, nz, wn, dcl, grd, side, s
 
 
 @njit(cache=True)
-def _build_pairs(pos, kind, cell_start, cell_idx, ss, sso, sb, sbo, fp, ip):
-    """Bin the particles (real and ghost) in cells of side >= the list radius and list, per
-    granular particle p (compressed rows: partners ss[sso[p]:sso[p + 1]]), the pairs within
-    the list radius that the passes need: granular partners q > p (a real p: each granular
-    pair once, acting on both), and boundary partners (sb, sbo) of real granular particles
-    and of granular ghosts next to real boundary particles (their extrapolation). Returns
-    False when a list is full."""
+def _bin_cells(pos, kind, cell_start, cell_idx, rank, fp, ip):
+    """Sort the particles (real and ghost, not lost) into the cells by counting: cell (cx, cy,
+    cz) is number (cx ncy + cy) ncz + cz (x, the bed's longest axis, slowest), cell_idx the
+    particles in cell order, rank[p] p's place in it (-1: lost)."""
     n = ip[I_NR] + ip[I_NG]
-    ncx, ncy, ncz = ip[I_NCX], ip[I_NCY], ip[I_NCZ]
-    ncell = ncx * ncy * ncz
+    ncy, ncz = ip[I_NCY], ip[I_NCZ]
+    ncell = ip[I_NCX] * ncy * ncz
     cell_start[:] = 0
-    cid = np.empty(n, np.int64)
     for p in range(n):
         if kind[p] == LOST:
-            cid[p] = -1
+            rank[p] = -1
             continue
         cx, cy, cz = _cell3(pos[p, 0], pos[p, 1], pos[p, 2], fp, ip)
-        c = (cz * ncy + cy) * ncx + cx
-        cid[p] = c
+        c = (cx * ncy + cy) * ncz + cz
+        rank[p] = c  # the cell for now
         cell_start[c + 1] += 1
     for c in range(ncell):
         cell_start[c + 1] += cell_start[c]
     fill = cell_start[:ncell].copy()
     for p in range(n):
-        c = cid[p]
+        c = rank[p]
         if c >= 0:
             cell_idx[fill[c]] = p
+            rank[p] = fill[c]
             fill[c] += 1
-    nr = ip[I_NR]
-    rl2 = fp[F_RLIST] ** 2
+
+
+@njit(cache=True)
+def _chunk_bounds(cell_start, bounds, ip):
+    """Split the particles in cell order into chunks for the parallel pair passes. Two
+    particles of a pair lie less than ``span`` places apart in cell order (span: the furthest
+    any occupied cell's neighbour cells reach before or after it), so chunks at least span
+    long make every pass over a chunk's particles write only into that chunk and its two
+    neighbours: chunks three apart run at once (three phases), with no atomics and sums whose
+    order does not depend on the number of threads. bounds[0..q], ip[I_NCHUNK] = q."""
+    ncx, ncy, ncz = ip[I_NCX], ip[I_NCY], ip[I_NCZ]
+    span = 1
+    for cx in range(ncx):
+        for cy in range(ncy):
+            for cz in range(ncz):
+                c = (cx * ncy + cy) * ncz + cz
+                if cell_start[c + 1] == cell_start[c]:
+                    continue
+                hi = (min(cx + 1, ncx - 1) * ncy + min(cy + 1, ncy - 1)) * ncz + min(cz + 1, ncz - 1)
+                lo = (max(cx - 1, 0) * ncy + max(cy - 1, 0)) * ncz + max(cz - 1, 0)
+                span = max(span, cell_start[hi + 1] - cell_start[c],
+                           cell_start[c + 1] - cell_start[lo])
+    m = cell_start[ncx * ncy * ncz]
+    q = max(1, min(m // span, bounds.shape[0] - 1))
+    for k in range(q + 1):
+        bounds[k] = m * k // q
+    ip[I_NCHUNK] = q
+
+
+@njit(inline="always")
+def _pairs_of(p, pos, kind, rank, cell_start, cell_idx, ss, sb, o_ss, o_sb, write, rl2, fp, ip):
+    """The list entries of particle p (see :func:`_build_pairs`): counts (granular, boundary)
+    and, with ``write``, the partners at ss[o_ss:], sb[o_sb:]."""
     nss = 0
     nsb = 0
-    cap_ss = ss.shape[0]
-    cap_sb = sb.shape[0]
-    for p in range(n):
-        sso[p] = nss
-        sbo[p] = nsb
-        c = cid[p]
-        if c < 0 or kind[p] != SOIL:
+    if kind[p] != SOIL:
+        return nss, nsb
+    nr = ip[I_NR]
+    ncx, ncy, ncz = ip[I_NCX], ip[I_NCY], ip[I_NCZ]
+    real = p < nr
+    rp = rank[p]
+    cx, cy, cz = _cell3(pos[p, 0], pos[p, 1], pos[p, 2], fp, ip)
+    for ddx in range(-1, 2):
+        ix = cx + ddx
+        if ix < 0 or ix >= ncx:
             continue
-        real = p < nr
-        cz = c // (ncx * ncy)
-        cy = (c // ncx) % ncy
-        cx = c % ncx
-        for dz in range(-1, 2):
-            iz = cz + dz
-            if iz < 0 or iz >= ncz:
+        for ddy in range(-1, 2):
+            iy = cy + ddy
+            if iy < 0 or iy >= ncy:
                 continue
-            for dy in range(-1, 2):
-                iy = cy + dy
-                if iy < 0 or iy >= ncy:
+            for ddz in range(-1, 2):
+                iz = cz + ddz
+                if iz < 0 or iz >= ncz:
                     continue
-                for dx in range(-1, 2):
-                    ix = cx + dx
-                    if ix < 0 or ix >= ncx:
+                cc = (ix * ncy + iy) * ncz + iz
+                for t in range(cell_start[cc], cell_start[cc + 1]):
+                    q = cell_idx[t]
+                    kq = kind[q]
+                    if kq == SOIL:
+                        if not real or (q < nr and rank[q] <= rp):
+                            continue
+                    elif not real and q >= nr:
                         continue
-                    cc = (iz * ncy + iy) * ncx + ix
-                    for t in range(cell_start[cc], cell_start[cc + 1]):
-                        q = cell_idx[t]
-                        kq = kind[q]
-                        if kq == SOIL:
-                            if q <= p or not real:
-                                continue
-                        elif not real and q >= nr:
-                            continue
-                        rx = pos[p, 0] - pos[q, 0]
-                        ry = pos[p, 1] - pos[q, 1]
-                        rz = pos[p, 2] - pos[q, 2]
-                        if rx * rx + ry * ry + rz * rz >= rl2:
-                            continue
-                        if kq == SOIL:
-                            if nss >= cap_ss:
-                                return False
-                            ss[nss] = q
-                            nss += 1
-                        else:
-                            if nsb >= cap_sb:
-                                return False
-                            sb[nsb] = q
-                            nsb += 1
-    sso[n] = nss
-    sbo[n] = nsb
-    ip[I_NSS] = nss
-    ip[I_NSB] = nsb
+                    rx = pos[p, 0] - pos[q, 0]
+                    ry = pos[p, 1] - pos[q, 1]
+                    rz = pos[p, 2] - pos[q, 2]
+                    if rx * rx + ry * ry + rz * rz >= rl2:
+                        continue
+                    if kq == SOIL:
+                        if write:
+                            ss[o_ss + nss] = q
+                        nss += 1
+                    else:
+                        if write:
+                            sb[o_sb + nsb] = q
+                        nsb += 1
+    return nss, nsb
+
+
+@njit(cache=True, parallel=True)
+def _build_pairs(pos, kind, rank, cell_start, cell_idx, ss, sso, sb, sbo, fp, ip):
+    """List, per granular particle p (compressed rows: partners ss[sso[p]:sso[p + 1]]), the
+    pairs within the list radius that the passes need: granular partners later in cell order
+    and granular ghosts (a real p: each granular pair once, acting on both), and boundary
+    partners (sb, sbo) of real granular particles and of granular ghosts next to real
+    boundary particles (their extrapolation). The cells come from :func:`_bin_cells`. Counts
+    first, then the rows, both in parallel. Returns False when a list is full."""
+    n = ip[I_NR] + ip[I_NG]
+    rl2 = fp[F_RLIST] ** 2
+    for p in prange(n):
+        a, b = _pairs_of(p, pos, kind, rank, cell_start, cell_idx, ss, sb, 0, 0, False, rl2,
+                         fp, ip)
+        sso[p + 1] = a
+        sbo[p + 1] = b
+    sso[0] = 0
+    sbo[0] = 0
+    for p in range(n):
+        sso[p + 1] += sso[p]
+        sbo[p + 1] += sbo[p]
+    if sso[n] > ss.shape[0] or sbo[n] > sb.shape[0]:
+        return False
+    for p in prange(n):
+        _pairs_of(p, pos, kind, rank, cell_start, cell_idx, ss, sb, sso[p], sbo[p], True, rl2,
+                  fp, ip)
+    ip[I_NSS] = sso[n]
+    ip[I_NSB] = sbo[n]
     return True
 
 
 # ------------------------------------------------------------------------- the pair terms
-@njit(cache=True, fastmath=True)
-def _boundary_pass(pos, vel, gv, rho, sig, kind, wn, dcl, sb, sbo, wsb, reuse, bacc, fp, ip):
+@njit(inline="always", fastmath=True)
+def _boundary_one(f, pos, vel, rho, sig, kind, wn, dcl, sb, sbo, wsb, reuse, bacc, h, gz, nr,
+                  sup2, c_w):
+    """:func:`_boundary_pass`'s sums over the boundary partners of the granular particle f."""
+    if kind[f] != SOIL:
+        return
+    xf = pos[f, 0]
+    yf = pos[f, 1]
+    zf = pos[f, 2]
+    rf = rho[f]
+    for k in range(sbo[f], sbo[f + 1]):
+        w = sb[k]
+        rz = pos[w, 2] - zf
+        if reuse:
+            wgt = wsb[k]
+            if wgt == 0.0:
+                continue
+        else:
+            wsb[k] = 0.0
+            if w >= nr:
+                continue
+            rx = pos[w, 0] - xf
+            ry = pos[w, 1] - yf
+            r2 = rx * rx + ry * ry + rz * rz
+            if r2 >= sup2:
+                continue
+            if kind[w] == LEG and (xf - pos[w, 0]) * wn[w, 0] + (zf - pos[w, 2]) * wn[w, 1] \
+                    + dcl[w] <= 0.0:
+                continue
+            q = math.sqrt(r2) / h
+            t = 1.0 - 0.5 * q
+            wgt = c_w * t * t * t * t * (2.0 * q + 1.0)
+            wsb[k] = wgt
+        bacc[w, 0] += wgt
+        for c in range(6):
+            bacc[w, 1 + c] += sig[f, c] * wgt
+        bacc[w, 7] += vel[f, 0] * wgt
+        bacc[w, 8] += vel[f, 1] * wgt
+        bacc[w, 9] += vel[f, 2] * wgt
+        bacc[w, 10] += rf * (gz * rz) * wgt
+
+
+@njit(cache=True, fastmath=True, parallel=True)
+def _boundary_pass(pos, vel, gv, rho, sig, kind, wn, dcl, sb, sbo, wsb, reuse, bacc, cell_idx,
+                   bounds, fp, ip):
     """Adami extrapolation: stress and (no-slip) ghost velocity of every real wall and
     plate particle from the granular particles around it (Shepard average + rho (g - a_w) .
     (x_w - x_f); a_w = 0: walls fixed, the plate moves at constant speed). A plate marker
     uses only material on its own side. The kernel values go to wsb (per pair) or, with
-    ``reuse`` (positions unchanged since), come from it."""
+    ``reuse`` (positions unchanged since), come from it. The granular particles in the
+    chunks of :func:`_chunk_bounds`, three phases."""
     h = fp[F_H]
     gz = fp[F_GZ]
     nr = ip[I_NR]
-    n = nr + ip[I_NG]
     sup2 = 4.0 * h * h
     c_w = _W3D / (h * h * h)
-    bacc[:nr] = 0.0
-    for f in range(n):
-        if kind[f] != SOIL:
-            continue
-        xf = pos[f, 0]
-        yf = pos[f, 1]
-        zf = pos[f, 2]
-        rf = rho[f]
-        for k in range(sbo[f], sbo[f + 1]):
-            w = sb[k]
-            rz = pos[w, 2] - zf
-            if reuse:
-                wgt = wsb[k]
-                if wgt == 0.0:
-                    continue
-            else:
-                wsb[k] = 0.0
-                if w >= nr:
-                    continue
-                rx = pos[w, 0] - xf
-                ry = pos[w, 1] - yf
-                r2 = rx * rx + ry * ry + rz * rz
-                if r2 >= sup2:
-                    continue
-                if kind[w] == LEG and (xf - pos[w, 0]) * wn[w, 0] + (zf - pos[w, 2]) * wn[w, 1] \
-                        + dcl[w] <= 0.0:
-                    continue
-                q = math.sqrt(r2) / h
-                t = 1.0 - 0.5 * q
-                wgt = c_w * t * t * t * t * (2.0 * q + 1.0)
-                wsb[k] = wgt
-            bacc[w, 0] += wgt
-            for c in range(6):
-                bacc[w, 1 + c] += sig[f, c] * wgt
-            bacc[w, 7] += vel[f, 0] * wgt
-            bacc[w, 8] += vel[f, 1] * wgt
-            bacc[w, 9] += vel[f, 2] * wgt
-            bacc[w, 10] += rf * (gz * rz) * wgt
-    for w in range(nr):
+    nch = ip[I_NCHUNK]
+    for w in prange(nr):
+        for c in range(11):
+            bacc[w, c] = 0.0
+    for phase in range(3):
+        for j in prange((nch + 2 - phase) // 3):
+            jc = 3 * j + phase
+            for rk in range(bounds[jc], bounds[jc + 1]):
+                _boundary_one(cell_idx[rk], pos, vel, rho, sig, kind, wn, dcl, sb, sbo, wsb,
+                              reuse, bacc, h, gz, nr, sup2, c_w)
+    for w in prange(nr):
         kw = kind[w]
         if kw != WALL and kw != LEG:
             continue
@@ -437,68 +506,84 @@ def _add_grad(lg, row, m, vol, dvx, dvy, dvz, gx, gy, gz):
     lg[row, 9] -= vol * dvz * gz
 
 
-@njit(cache=True, fastmath=True)
+@njit(inline="always", fastmath=True)
+def _strain_one(a, pos, vel, gv, rho, mass, kind, wn, dcl, side, ss, sso, sb, sbo, fss, fsb, lg,
+                nr, sup2, dwc, inv_h):
+    """:func:`_strain_pass`'s pair sums of the real granular particle a (its granular pairs
+    also act on the real partner)."""
+    if a >= nr or kind[a] != SOIL:
+        return
+    xa = pos[a, 0]
+    ya = pos[a, 1]
+    za = pos[a, 2]
+    sa = side[a]
+    ma = mass[a]
+    va = ma / rho[a]
+    for k in range(sso[a], sso[a + 1]):
+        b = ss[k]
+        fss[k] = 0.0
+        if kind[b] != SOIL or sa * side[b] < 0.0:
+            continue
+        rx = xa - pos[b, 0]
+        ry = ya - pos[b, 1]
+        rz = za - pos[b, 2]
+        r2 = rx * rx + ry * ry + rz * rz
+        if r2 >= sup2:
+            continue
+        t = 1.0 - 0.5 * math.sqrt(r2) * inv_h
+        fdw = dwc * t * t * t
+        fss[k] = fdw
+        dvx = vel[a, 0] - vel[b, 0]
+        dvy = vel[a, 1] - vel[b, 1]
+        dvz = vel[a, 2] - vel[b, 2]
+        mb = mass[b]
+        _add_grad(lg, a, mb, mb / rho[b], dvx, dvy, dvz, fdw * rx, fdw * ry, fdw * rz)
+        if b < nr:  # grad_b W = -grad_a W, v_b - v_a = -dv: the same products
+            _add_grad(lg, b, ma, va, dvx, dvy, dvz, fdw * rx, fdw * ry, fdw * rz)
+    for k in range(sbo[a], sbo[a + 1]):
+        w = sb[k]
+        fsb[k] = 0.0
+        rx = xa - pos[w, 0]
+        ry = ya - pos[w, 1]
+        rz = za - pos[w, 2]
+        r2 = rx * rx + ry * ry + rz * rz
+        if r2 >= sup2:
+            continue
+        if kind[w] == LEG and rx * wn[w, 0] + rz * wn[w, 1] + dcl[w] <= 0.0:
+            continue
+        t = 1.0 - 0.5 * math.sqrt(r2) * inv_h
+        fdw = dwc * t * t * t
+        fsb[k] = fdw
+        mw = mass[w]
+        _add_grad(lg, a, mw, mw / rho[w], vel[a, 0] - gv[w, 0], vel[a, 1] - gv[w, 1],
+                  vel[a, 2] - gv[w, 2], fdw * rx, fdw * ry, fdw * rz)
+
+
+@njit(cache=True, fastmath=True, parallel=True)
 def _strain_pass(pos, vel, gv, rho, mass, sig, kind, wn, dcl, side, ss, sso, sb, sbo, fss, fsb,
-                 lg, fp, ip):
+                 lg, cell_idx, bounds, fp, ip):
     """Pass 1: d rho/dt and the velocity gradient of every real granular particle (l_ab =
     dv_a/dx_b, lg[i] = (d rho/dt, lxx, lxy, lxz, lyx, lyy, lyz, lzx, lzy, lzz)), then
     :func:`dp_update3`. The kernel-gradient factors (grad W = fdw r) go to fss, fsb (0: no
-    interaction) for pass 2."""
+    interaction) for pass 2. The granular particles in the chunks of :func:`_chunk_bounds`,
+    three phases."""
     h = fp[F_H]
     nr = ip[I_NR]
     sup2 = 4.0 * h * h
     dwc = -5.0 * _W3D / (h * h * h * h * h)
     inv_h = 1.0 / h
-    lg[:nr] = 0.0
-    for a in range(nr):
-        if kind[a] != SOIL:
-            continue
-        xa = pos[a, 0]
-        ya = pos[a, 1]
-        za = pos[a, 2]
-        sa = side[a]
-        ma = mass[a]
-        va = ma / rho[a]
-        for k in range(sso[a], sso[a + 1]):
-            b = ss[k]
-            fss[k] = 0.0
-            if kind[b] != SOIL or sa * side[b] < 0.0:
-                continue
-            rx = xa - pos[b, 0]
-            ry = ya - pos[b, 1]
-            rz = za - pos[b, 2]
-            r2 = rx * rx + ry * ry + rz * rz
-            if r2 >= sup2:
-                continue
-            t = 1.0 - 0.5 * math.sqrt(r2) * inv_h
-            fdw = dwc * t * t * t
-            fss[k] = fdw
-            dvx = vel[a, 0] - vel[b, 0]
-            dvy = vel[a, 1] - vel[b, 1]
-            dvz = vel[a, 2] - vel[b, 2]
-            mb = mass[b]
-            _add_grad(lg, a, mb, mb / rho[b], dvx, dvy, dvz, fdw * rx, fdw * ry, fdw * rz)
-            if b < nr:  # grad_b W = -grad_a W, v_b - v_a = -dv: the same products
-                _add_grad(lg, b, ma, va, dvx, dvy, dvz, fdw * rx, fdw * ry, fdw * rz)
-        for k in range(sbo[a], sbo[a + 1]):
-            w = sb[k]
-            fsb[k] = 0.0
-            rx = xa - pos[w, 0]
-            ry = ya - pos[w, 1]
-            rz = za - pos[w, 2]
-            r2 = rx * rx + ry * ry + rz * rz
-            if r2 >= sup2:
-                continue
-            if kind[w] == LEG and rx * wn[w, 0] + rz * wn[w, 1] + dcl[w] <= 0.0:
-                continue
-            t = 1.0 - 0.5 * math.sqrt(r2) * inv_h
-            fdw = dwc * t * t * t
-            fsb[k] = fdw
-            mw = mass[w]
-            _add_grad(lg, a, mw, mw / rho[w], vel[a, 0] - gv[w, 0], vel[a, 1] - gv[w, 1],
-                      vel[a, 2] - gv[w, 2], fdw * rx, fdw * ry, fdw * rz)
+    nch = ip[I_NCHUNK]
+    for i in prange(nr):
+        for c in range(10):
+            lg[i, c] = 0.0
+    for phase in range(3):
+        for j in prange((nch + 2 - phase) // 3):
+            jc = 3 * j + phase
+            for rk in range(bounds[jc], bounds[jc + 1]):
+                _strain_one(cell_idx[rk], pos, vel, gv, rho, mass, kind, wn, dcl, side, ss, sso,
+                            sb, sbo, fss, fsb, lg, nr, sup2, dwc, inv_h)
     dt = fp[F_DT]
-    for i in range(nr):
+    for i in prange(nr):
         if kind[i] != SOIL:
             continue
         (rho[i], sig[i, S_XX], sig[i, S_YY], sig[i, S_ZZ], sig[i, S_XY], sig[i, S_XZ],
@@ -523,15 +608,119 @@ def _stress_term3(psig, a, b, pi_ij, gx, gy, gz):
             txz * gx + tyz * gy + tzz * gz)
 
 
-@njit(cache=True, fastmath=True)
+@njit(inline="always", fastmath=True)
+def _accel_one(a, pos, vel, rho, mass, psig, kind, nz, wn, dcl, grd, ss, sso, sb, sbo, fss, fsb,
+               acc, cont, h, h2, c0, ava, avb, half_t, arc, nr, fp):
+    """:func:`_accel_pass`'s pair sums of the real granular particle a (its granular pairs
+    also act on the real partner)."""
+    if a >= nr or kind[a] != SOIL:
+        return
+    xa = pos[a, 0]
+    ya = pos[a, 1]
+    za = pos[a, 2]
+    vxa = vel[a, 0]
+    vya = vel[a, 1]
+    vza = vel[a, 2]
+    ra = rho[a]
+    ma = mass[a]
+    ax = 0.0
+    ay = 0.0
+    az = 0.0
+    for k in range(sso[a], sso[a + 1]):
+        fdw = fss[k]
+        if fdw == 0.0:
+            continue
+        b = ss[k]
+        rx = xa - pos[b, 0]
+        ry = ya - pos[b, 1]
+        rz = za - pos[b, 2]
+        vdotr = (vxa - vel[b, 0]) * rx + (vya - vel[b, 1]) * ry + (vza - vel[b, 2]) * rz
+        pi_ij = 0.0
+        if vdotr < 0.0:
+            mu = h * vdotr / (rx * rx + ry * ry + rz * rz + 0.01 * h2)
+            pi_ij = (-ava * c0 * mu + avb * mu * mu) / (0.5 * (ra + rho[b]))
+        fx, fy, fz = _stress_term3(psig, a, b, pi_ij, fdw * rx, fdw * ry, fdw * rz)
+        mb = mass[b]
+        ax += mb * fx
+        ay += mb * fy
+        az += mb * fz
+        if b < nr:
+            acc[b, 0] -= ma * fx
+            acc[b, 1] -= ma * fy
+            acc[b, 2] -= ma * fz
+    f3x = 0.0
+    f3y = 0.0
+    f3z = 0.0
+    dmin = fp[F_GAP]
+    pn = 0.0
+    gnx = 0.0
+    gnz = 0.0
+    r2min = np.inf
+    wnear = -1
+    for k in range(sbo[a], sbo[a + 1]):
+        fdw = fsb[k]
+        if fdw == 0.0:
+            continue
+        w = sb[k]
+        rx = xa - pos[w, 0]
+        ry = ya - pos[w, 1]
+        rz = za - pos[w, 2]
+        tx, ty, tz = _stress_term3(psig, a, w, 0.0, fdw * rx, fdw * ry, fdw * rz)
+        mw = mass[w]
+        pax = mw * tx
+        pay = mw * ty
+        paz = mw * tz
+        ax += pax
+        ay += pay
+        az += paz
+        if kind[w] == LEG:
+            f3x -= ma * pax
+            f3y -= ma * pay
+            f3z -= ma * paz
+            if grd[w] > 0.0:
+                if arc:  # a curved face: the tangent plane of the nearest marker
+                    r2 = rx * rx + ry * ry + rz * rz
+                    if r2 < r2min:
+                        r2min = r2
+                        wnear = w
+                else:
+                    dn = rx * wn[w, 0] + rz * wn[w, 1] + dcl[w] - half_t
+                    if dn < dmin:
+                        dmin = dn
+                        pn = nz[w]
+                        gnx = wn[w, 0]
+                        gnz = wn[w, 1]
+    acc[a, 0] += ax
+    acc[a, 1] += ay
+    acc[a, 2] += az
+    acc[a, 3] = f3x
+    acc[a, 4] = f3y
+    acc[a, 5] = f3z
+    if wnear >= 0:
+        w = wnear
+        dn = ((xa - pos[w, 0]) * wn[w, 0] + (za - pos[w, 2]) * wn[w, 1] + dcl[w]
+              - half_t)
+        if dn < dmin:
+            dmin = dn
+            pn = nz[w]
+            gnx = wn[w, 0]
+            gnz = wn[w, 1]
+    cont[a, 0] = dmin
+    cont[a, 1] = pn
+    cont[a, 2] = gnx
+    cont[a, 3] = gnz
+
+
+@njit(cache=True, fastmath=True, parallel=True)
 def _accel_pass(pos, vel, rho, mass, sig, psig, kind, nz, wn, dcl, grd, ss, sso, sb, sbo, fss, fsb,
-                acc, cont, fp, ip):
+                acc, cont, cell_idx, bounds, fp, ip):
     """Pass 2's pair sums (the pairs and kernel-gradient factors of pass 1, positions
     unchanged since): acceleration of every real granular particle (acc[i, 0:3]), its force
     on the plate (acc[i, 3:6]) and the nearest guarded plate surface (cont[i] = (distance,
     face, outward normal x, z); a flat plate: the least distance over the guarded markers, a
     curved leg: the distance to the tangent plane of the nearest guarded marker). psig:
-    scratch (N, 6) for sigma / rho^2."""
+    scratch (N, 6) for sigma / rho^2. The granular particles in the chunks of
+    :func:`_chunk_bounds`, three phases."""
     h = fp[F_H]
     nr = ip[I_NR]
     h2 = h * h
@@ -540,117 +729,32 @@ def _accel_pass(pos, vel, rho, mass, sig, psig, kind, nz, wn, dcl, grd, ss, sso,
     avb = fp[F_AVB]
     half_t = fp[F_HALFT]
     arc = ip[I_ARC] != 0
-    for i in range(nr + ip[I_NG]):
+    for i in prange(nr + ip[I_NG]):
         r = rho[i]
         inv2 = 1.0 / (r * r)
         for c in range(6):
             psig[i, c] = sig[i, c] * inv2
-    acc[:nr] = 0.0
-    for a in range(nr):
-        if kind[a] != SOIL:
-            continue
-        xa = pos[a, 0]
-        ya = pos[a, 1]
-        za = pos[a, 2]
-        vxa = vel[a, 0]
-        vya = vel[a, 1]
-        vza = vel[a, 2]
-        ra = rho[a]
-        ma = mass[a]
-        ax = 0.0
-        ay = 0.0
-        az = 0.0
-        for k in range(sso[a], sso[a + 1]):
-            fdw = fss[k]
-            if fdw == 0.0:
-                continue
-            b = ss[k]
-            rx = xa - pos[b, 0]
-            ry = ya - pos[b, 1]
-            rz = za - pos[b, 2]
-            vdotr = (vxa - vel[b, 0]) * rx + (vya - vel[b, 1]) * ry + (vza - vel[b, 2]) * rz
-            pi_ij = 0.0
-            if vdotr < 0.0:
-                mu = h * vdotr / (rx * rx + ry * ry + rz * rz + 0.01 * h2)
-                pi_ij = (-ava * c0 * mu + avb * mu * mu) / (0.5 * (ra + rho[b]))
-            fx, fy, fz = _stress_term3(psig, a, b, pi_ij, fdw * rx, fdw * ry, fdw * rz)
-            mb = mass[b]
-            ax += mb * fx
-            ay += mb * fy
-            az += mb * fz
-            if b < nr:
-                acc[b, 0] -= ma * fx
-                acc[b, 1] -= ma * fy
-                acc[b, 2] -= ma * fz
-        f3x = 0.0
-        f3y = 0.0
-        f3z = 0.0
-        dmin = fp[F_GAP]
-        pn = 0.0
-        gnx = 0.0
-        gnz = 0.0
-        r2min = np.inf
-        wnear = -1
-        for k in range(sbo[a], sbo[a + 1]):
-            fdw = fsb[k]
-            if fdw == 0.0:
-                continue
-            w = sb[k]
-            rx = xa - pos[w, 0]
-            ry = ya - pos[w, 1]
-            rz = za - pos[w, 2]
-            tx, ty, tz = _stress_term3(psig, a, w, 0.0, fdw * rx, fdw * ry, fdw * rz)
-            mw = mass[w]
-            pax = mw * tx
-            pay = mw * ty
-            paz = mw * tz
-            ax += pax
-            ay += pay
-            az += paz
-            if kind[w] == LEG:
-                f3x -= ma * pax
-                f3y -= ma * pay
-                f3z -= ma * paz
-                if grd[w] > 0.0:
-                    if arc:  # a curved face: the tangent plane of the nearest marker
-                        r2 = rx * rx + ry * ry + rz * rz
-                        if r2 < r2min:
-                            r2min = r2
-                            wnear = w
-                    else:
-                        dn = rx * wn[w, 0] + rz * wn[w, 1] + dcl[w] - half_t
-                        if dn < dmin:
-                            dmin = dn
-                            pn = nz[w]
-                            gnx = wn[w, 0]
-                            gnz = wn[w, 1]
-        acc[a, 0] += ax
-        acc[a, 1] += ay
-        acc[a, 2] += az
-        acc[a, 3] = f3x
-        acc[a, 4] = f3y
-        acc[a, 5] = f3z
-        if wnear >= 0:
-            w = wnear
-            dn = ((xa - pos[w, 0]) * wn[w, 0] + (za - pos[w, 2]) * wn[w, 1] + dcl[w]
-                  - half_t)
-            if dn < dmin:
-                dmin = dn
-                pn = nz[w]
-                gnx = wn[w, 0]
-                gnz = wn[w, 1]
-        cont[a, 0] = dmin
-        cont[a, 1] = pn
-        cont[a, 2] = gnx
-        cont[a, 3] = gnz
+    nch = ip[I_NCHUNK]
+    for i in prange(nr):
+        for c in range(6):
+            acc[i, c] = 0.0
+    for phase in range(3):
+        for j in prange((nch + 2 - phase) // 3):
+            jc = 3 * j + phase
+            for rk in range(bounds[jc], bounds[jc + 1]):
+                _accel_one(cell_idx[rk], pos, vel, rho, mass, psig, kind, nz, wn, dcl, grd, ss,
+                           sso, sb, sbo, fss, fsb, acc, cont, h, h2, c0, ava, avb, half_t, arc,
+                           nr, fp)
 
 
-@njit(cache=True, fastmath=True)
-def _kick(pos, vel, mass, rho, sig, kind, acc, cont, damp, force, fp, ip):
+@njit(cache=True, fastmath=True, parallel=True)
+def _kick(pos, vel, mass, rho, sig, kind, acc, cont, damp, force, part, fp, ip):
     """Kick, contact guard and drift of the real granular particles; mirror reflection at
     the symmetry planes; granular particles that left the box become LOST. Adds the force on
     the plate (pair forces + the guard's momentum) to force (3,). Returns the index of a
-    particle that went non-finite or faster than sound, or -1."""
+    particle that went non-finite or faster than sound, or -1. In parallel over fixed blocks
+    of particles (part: their (force x, y, z, lost, bad) rows), summed in block order, so the
+    force does not depend on the number of threads."""
     nr = ip[I_NR]
     dt = fp[F_DT]
     gz = fp[F_GZ]
@@ -663,67 +767,86 @@ def _kick(pos, vel, mass, rho, sig, kind, acc, cont, damp, force, fp, ip):
     my0 = ip[I_MY0] != 0
     my1 = ip[I_MY1] != 0
     cx, cz, pvx, pvz, om = fp[F_CX], fp[F_CZ], fp[F_VX], fp[F_VZ], fp[F_OM]
+    nblk = part.shape[0]
+    for blk in prange(nblk):
+        bfx = 0.0
+        bfy = 0.0
+        bfz = 0.0
+        blost = 0
+        bbad = -1
+        for i in range(nr * blk // nblk, nr * (blk + 1) // nblk):
+            if kind[i] != SOIL:
+                continue
+            nvx = (vel[i, 0] + dt * acc[i, 0]) * fdamp
+            nvy = (vel[i, 1] + dt * acc[i, 1]) * fdamp
+            nvz = (vel[i, 2] + dt * (acc[i, 2] + gz)) * fdamp
+            fx = acc[i, 3]
+            fy = acc[i, 4]
+            fz = acc[i, 5]
+            pn = cont[i, 1]
+            dp = 0.0
+            gnx = cont[i, 2]  # the guarded face's outward normal
+            gnz = cont[i, 3]
+            if pn != 0.0:  # the guard: no approach faster than the plate's rigid motion there
+                vn = ((nvx - pvx + om * (pos[i, 2] - cz)) * gnx
+                      + (nvz - pvz - om * (pos[i, 0] - cx)) * gnz)
+                if vn < 0.0:
+                    nvx -= vn * gnx
+                    nvz -= vn * gnz
+                    fx += mass[i] * vn * gnx / dt
+                    fz += mass[i] * vn * gnz / dt
+                dp = min(gap - cont[i, 0], max_push)
+            bfx += fx
+            bfy += fy
+            bfz += fz
+            vel[i, 0] = nvx
+            vel[i, 1] = nvy
+            vel[i, 2] = nvz
+            x = pos[i, 0] + dt * nvx + dp * gnx
+            y = pos[i, 1] + dt * nvy
+            z = pos[i, 2] + dt * nvz + dp * gnz
+            flip_x = mx and x < 0.0
+            flip_y = (my0 and y < 0.0) or (my1 and y > ly)
+            if flip_x:
+                x = -x
+                vel[i, 0] = -vel[i, 0]
+                sig[i, S_XY] = -sig[i, S_XY]
+                sig[i, S_XZ] = -sig[i, S_XZ]
+            if flip_y:
+                y = -y if y < 0.0 else 2.0 * ly - y
+                vel[i, 1] = -vel[i, 1]
+                sig[i, S_XY] = -sig[i, S_XY]
+                sig[i, S_YZ] = -sig[i, S_YZ]
+            pos[i, 0] = x
+            pos[i, 1] = y
+            pos[i, 2] = z
+            if x > fp[F_XHIB] or x < fp[F_XLOB] or y > fp[F_YHIB] or z < fp[F_ZLOB]:
+                kind[i] = LOST
+                pos[i, 0] = 1e3 + i
+                pos[i, 1] = 1e3
+                pos[i, 2] = 1e3
+                blost += 1
+                continue
+            v2 = nvx * nvx + nvy * nvy + nvz * nvz
+            if not (v2 < vmax * vmax and math.isfinite(x + y + z + rho[i] + sig[i, S_ZZ])):
+                bbad = i
+        part[blk, 0] = bfx
+        part[blk, 1] = bfy
+        part[blk, 2] = bfz
+        part[blk, 3] = blost
+        part[blk, 4] = bbad
     bad = -1
-    for i in range(nr):
-        if kind[i] != SOIL:
-            continue
-        nvx = (vel[i, 0] + dt * acc[i, 0]) * fdamp
-        nvy = (vel[i, 1] + dt * acc[i, 1]) * fdamp
-        nvz = (vel[i, 2] + dt * (acc[i, 2] + gz)) * fdamp
-        fx = acc[i, 3]
-        fy = acc[i, 4]
-        fz = acc[i, 5]
-        pn = cont[i, 1]
-        dp = 0.0
-        gnx = cont[i, 2]  # the guarded face's outward normal
-        gnz = cont[i, 3]
-        if pn != 0.0:  # the guard: no approach faster than the plate's rigid motion there
-            vn = ((nvx - pvx + om * (pos[i, 2] - cz)) * gnx
-                  + (nvz - pvz - om * (pos[i, 0] - cx)) * gnz)
-            if vn < 0.0:
-                nvx -= vn * gnx
-                nvz -= vn * gnz
-                fx += mass[i] * vn * gnx / dt
-                fz += mass[i] * vn * gnz / dt
-            dp = min(gap - cont[i, 0], max_push)
-        force[0] += fx
-        force[1] += fy
-        force[2] += fz
-        vel[i, 0] = nvx
-        vel[i, 1] = nvy
-        vel[i, 2] = nvz
-        x = pos[i, 0] + dt * nvx + dp * gnx
-        y = pos[i, 1] + dt * nvy
-        z = pos[i, 2] + dt * nvz + dp * gnz
-        flip_x = mx and x < 0.0
-        flip_y = (my0 and y < 0.0) or (my1 and y > ly)
-        if flip_x:
-            x = -x
-            vel[i, 0] = -vel[i, 0]
-            sig[i, S_XY] = -sig[i, S_XY]
-            sig[i, S_XZ] = -sig[i, S_XZ]
-        if flip_y:
-            y = -y if y < 0.0 else 2.0 * ly - y
-            vel[i, 1] = -vel[i, 1]
-            sig[i, S_XY] = -sig[i, S_XY]
-            sig[i, S_YZ] = -sig[i, S_YZ]
-        pos[i, 0] = x
-        pos[i, 1] = y
-        pos[i, 2] = z
-        if x > fp[F_XHIB] or x < fp[F_XLOB] or y > fp[F_YHIB] or z < fp[F_ZLOB]:
-            kind[i] = LOST
-            pos[i, 0] = 1e3 + i
-            pos[i, 1] = 1e3
-            pos[i, 2] = 1e3
-            ip[I_LOST] += 1
-            continue
-        v2 = nvx * nvx + nvy * nvy + nvz * nvz
-        if not (v2 < vmax * vmax and math.isfinite(x + y + z + rho[i] + sig[i, S_ZZ])):
-            bad = i
+    for blk in range(nblk):
+        force[0] += part[blk, 0]
+        force[1] += part[blk, 1]
+        force[2] += part[blk, 2]
+        ip[I_LOST] += int(part[blk, 3])
+        if part[blk, 4] >= 0.0:
+            bad = int(part[blk, 4])
     return bad
 
 
-@njit(cache=True, fastmath=True)
+@njit(cache=True, fastmath=True, parallel=True)
 def _sides(pos, kind, side, fp, ip):
     """Side of the plate of every real granular particle: +1 / -1 on the side its normal
     points to / the other, where it lies over the plate (|(r - c) . u| <= a along the chord,
@@ -738,7 +861,7 @@ def _sides(pos, kind, side, fp, ip):
     arc = ip[I_ARC] != 0
     rad, qc, sg, cphi = fp[F_ARCR], fp[F_ARCQC], fp[F_ARCSG], fp[F_ARCCOS]
     cx, cz, ux, uz = fp[F_CX], fp[F_CZ], fp[F_UX], fp[F_UZ]
-    for i in range(ip[I_NR]):
+    for i in prange(ip[I_NR]):
         if kind[i] != SOIL:
             continue
         rx = pos[i, 0] - cx
@@ -756,23 +879,31 @@ def _sides(pos, kind, side, fp, ip):
         side[i] = s
 
 
-@njit(cache=True)
-def _max_disp2(pos, pb, kind, nr):
-    m = 0.0
-    for i in range(nr):
-        if kind[i] == LOST:
-            continue
-        d = ((pos[i, 0] - pb[i, 0]) ** 2 + (pos[i, 1] - pb[i, 1]) ** 2
-             + (pos[i, 2] - pb[i, 2]) ** 2)
-        if d > m:
-            m = d
-    return m
+@njit(cache=True, fastmath=True, parallel=True)
+def _max_disp2(pos, pb, kind, nr, part):
+    """The largest squared displacement of a particle since the lists were built (part:
+    scratch rows, one per block)."""
+    nblk = part.shape[0]
+    for blk in prange(nblk):
+        m = 0.0
+        for i in range(nr * blk // nblk, nr * (blk + 1) // nblk):
+            if kind[i] == LOST:
+                continue
+            d = ((pos[i, 0] - pb[i, 0]) ** 2 + (pos[i, 1] - pb[i, 1]) ** 2
+                 + (pos[i, 2] - pb[i, 2]) ** 2)
+            if d > m:
+                m = d
+        part[blk, 0] = m
+    mall = 0.0
+    for blk in range(nblk):
+        mall = max(mall, part[blk, 0])
+    return mall
 
 
 @njit(cache=True)
 def steps3d(pose, damp, forces, pos, vel, gv, rho, mass, sig, kind, nz, wn, dcl, grd, side,
-            src, gs, go, bo, bn, lidx, pb, cell_start, cell_idx, ss, sso, sb, sbo, fss, fsb, wsb, lg,
-            acc, cont, bacc, psig, fp, ip):
+            src, gs, go, bo, bn, lidx, pb, cell_start, cell_idx, rank, bounds, ss, sso, sb, sbo, fss,
+            fsb, wsb, lg, acc, cont, bacc, psig, part, fp, ip):
     """Advance len(pose) steps: per step the plate (its frame from ``pose[s]``, a
     :data:`POSE` row; markers ``lidx`` at c + bo[:, 0] u + bo[:, 2] n, y = bo[:, 1], moving
     rigidly, their faces' outward normals wn = bn[:, 0] u + bn[:, 1] n), its sides, the lists (rebuilt with the ghosts when a particle moved half the
@@ -812,30 +943,34 @@ def steps3d(pose, damp, forces, pos, vel, gv, rho, mass, sig, kind, nz, wn, dcl,
                 wn[w, 0] = bn[kk, 0] * ux - bn[kk, 1] * uz
                 wn[w, 1] = bn[kk, 0] * uz + bn[kk, 1] * ux
             _sides(pos, kind, side, fp, ip)
-        if ip[I_BUILDS] == 0 or _max_disp2(pos, pb, kind, nr) > thr:
+        if ip[I_BUILDS] == 0 or _max_disp2(pos, pb, kind, nr, part) > thr:
             ng = _make_ghosts(pos, kind, src, gs, go, fp, ip)
             if ng < 0:
                 return s, GHOSTS_FULL
             ip[I_NG] = ng
             _update_ghosts(pos, vel, gv, rho, mass, sig, kind, nz, wn, dcl, grd, side, src, gs, go,
                            ip)
-            if not _build_pairs(pos, kind, cell_start, cell_idx, ss, sso, sb, sbo, fp, ip):
+            _bin_cells(pos, kind, cell_start, cell_idx, rank, fp, ip)
+            _chunk_bounds(cell_start, bounds, ip)
+            if not _build_pairs(pos, kind, rank, cell_start, cell_idx, ss, sso, sb, sbo, fp, ip):
                 ip[I_BUILDS] = 0
                 return s, PAIRS_FULL
             pb[:nr] = pos[:nr]
             ip[I_BUILDS] += 1
         _update_ghosts(pos, vel, gv, rho, mass, sig, kind, nz, wn, dcl, grd, side, src, gs, go, ip)
-        _boundary_pass(pos, vel, gv, rho, sig, kind, wn, dcl, sb, sbo, wsb, False, bacc, fp, ip)
+        _boundary_pass(pos, vel, gv, rho, sig, kind, wn, dcl, sb, sbo, wsb, False, bacc, cell_idx,
+                       bounds, fp, ip)
         _update_ghosts(pos, vel, gv, rho, mass, sig, kind, nz, wn, dcl, grd, side, src, gs, go, ip)
         _strain_pass(pos, vel, gv, rho, mass, sig, kind, wn, dcl, side, ss, sso, sb, sbo, fss,
-                     fsb, lg, fp, ip)
+                     fsb, lg, cell_idx, bounds, fp, ip)
         _update_ghosts(pos, vel, gv, rho, mass, sig, kind, nz, wn, dcl, grd, side, src, gs, go, ip)
-        _boundary_pass(pos, vel, gv, rho, sig, kind, wn, dcl, sb, sbo, wsb, True, bacc, fp, ip)
+        _boundary_pass(pos, vel, gv, rho, sig, kind, wn, dcl, sb, sbo, wsb, True, bacc, cell_idx,
+                       bounds, fp, ip)
         _update_ghosts(pos, vel, gv, rho, mass, sig, kind, nz, wn, dcl, grd, side, src, gs, go, ip)
         _accel_pass(pos, vel, rho, mass, sig, psig, kind, nz, wn, dcl, grd, ss, sso, sb, sbo, fss,
-                    fsb, acc, cont, fp, ip)
+                    fsb, acc, cont, cell_idx, bounds, fp, ip)
         f3[:] = 0.0
-        bad = _kick(pos, vel, mass, rho, sig, kind, acc, cont, damp[s], f3, fp, ip)
+        bad = _kick(pos, vel, mass, rho, sig, kind, acc, cont, damp[s], f3, part, fp, ip)
         forces[s, 0] = f3[0]
         forces[s, 1] = f3[1]
         forces[s, 2] = f3[2]
@@ -1169,6 +1304,9 @@ class Solver3D:
         ncell = np.maximum(np.ceil((hi - lo) / cell).astype(int), 1)
         self.cell_start = np.zeros(int(np.prod(ncell)) + 1, np.int64)
         self.cell_idx = np.zeros(n, np.int64)
+        self.rank = np.zeros(n, np.int64)
+        self.bounds = np.zeros(MAX_CHUNKS_3D + 1, np.int64)
+        self.part = np.zeros((N_BLOCKS_3D, 5))
         plate = sc.plate or {"a": 0.0, "b": 0.0, "t": 0.0, "slab": False}
         pose0 = plate.get("pose0", (0.0, 0.0, 0.0))  # overwritten by every step's pose
         arc = plate.get("arc") or {"r": 0.0, "qc": 0.0, "sg": 0.0, "half_angle": 0.0}
@@ -1193,7 +1331,7 @@ class Solver3D:
                     mirror_x=int(sc.mirror[0]), mirror_y0=int(sc.mirror[1]),
                     mirror_y1=int(sc.mirror[2]), slab=int(bool(plate["slab"])), builds=0,
                     has_plate=int(len(self.lidx) > 0), bad=-1, lost=0,
-                    arc=int(plate.get("arc") is not None))
+                    arc=int(plate.get("arc") is not None), nchunk=1)
         self.ip = np.array([ival[k] for k in IP], dtype=np.int64)
         self.t = 0.0
         self.step_count = 0
@@ -1242,6 +1380,7 @@ class Solver3D:
             s[:len(self.src)] = self.src
             self.src = s
             self.cell_idx = np.zeros(n, np.int64)
+            self.rank = np.zeros(n, np.int64)
             self.sso = np.zeros(n + 1, np.int64)
             self.sbo = np.zeros(n + 1, np.int64)
         self.ip[I_BUILDS] = 0
@@ -1260,11 +1399,11 @@ class Solver3D:
             d, code = steps3d(pose[done:], damp[done:], out[done:], self.pos,
                               self.vel, self.gv, self.rho, self.mass, self.sig, self.kind,
                               self.nz, self.wn, self.dcl, self.grd, self.side, self.src,
-                              self.gs, self.go, self.bo, self.bn, self.lidx, self.pb, self.cell_start,
-                              self.cell_idx, self.ss, self.sso, self.sb, self.sbo, self.fss,
-                              self.fsb, self.wsb,
-                              self.lg, self.acc, self.cont, self.bacc, self.psig, self.fp,
-                              self.ip)
+                              self.gs, self.go, self.bo, self.bn, self.lidx, self.pb,
+                              self.cell_start, self.cell_idx, self.rank, self.bounds, self.ss,
+                              self.sso, self.sb, self.sbo, self.fss, self.fsb, self.wsb,
+                              self.lg, self.acc, self.cont, self.bacc, self.psig, self.part,
+                              self.fp, self.ip)
             done += int(d)
             self.step_count += int(d)
             self.t += int(d) * self.dt
