@@ -324,7 +324,7 @@ def leg3d_cmd(medium: str = _MEDIUM, density_kg_m3: Optional[float] = _DENSITY,
               slab: Optional[int] = typer.Option(None, help="Plane-strain configuration instead: a slab this many particles thick (>= 4) between two mirror planes."),
               out: Optional[Path] = typer.Option(None, "--out", "-o", help="Write the curves and peaks as JSON here (stdout gets the summary)."),
               plot: Optional[Path] = typer.Option(None, help="Figure: lift and thrust against the leg angle, with the measured curve where there is one.")):
-    """A leg of the rotating-leg test in 3D (serial; its real 2.54 cm width)."""
+    """A leg of the rotating-leg test in 3D (its real 2.54 cm width; runs on NUMBA_NUM_THREADS threads, same forces on any number)."""
     from .. import io
     from ..sph import plate3d, plots
     from ..sph.state import SPHConfig

@@ -1105,7 +1105,7 @@ def plate_scene(medium: str | GranularMaterial = "3 mm glass CP", *, dx: float =
     n_est = estimate_particles(hx, hy, D, dx, layers, mirror_x, slab is not None)
     if n_est > MAX_PARTICLES:
         raise InputError("dx", f"a 3D bed of about {n_est:,} particles (dx = {dx * 1e3:g} mm) is "
-                               f"more than the {MAX_PARTICLES:,} this serial code allows")
+                               f"more than the {MAX_PARTICLES:,} this CPU code allows")
     check_memory("dx", n_est * PARTICLE_BYTES_3D,
                  f"a 3D bed of about {n_est:,} particles (dx = {dx * 1e3:g} mm)")
     x_lo = 0.0 if mirror_x else -hx
@@ -1231,7 +1231,7 @@ def plate_scene(medium: str | GranularMaterial = "3 mm glass CP", *, dx: float =
 
 # ----------------------------------------------------------------------------- the solver
 class Solver3D:
-    """Advances a :class:`Scene3D` (serial Numba kernels, :func:`steps3d`)."""
+    """Advances a :class:`Scene3D` (parallel Numba kernels, :func:`steps3d`)."""
 
     def __init__(self, scene: Scene3D, *, plate_speed: float = 0.0):
         self.scene = sc = scene
