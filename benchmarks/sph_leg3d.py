@@ -12,7 +12,7 @@ arcs of :mod:`terradyn.geometry`) the same way.
         [--dx-mm 4] [--omega 1.1] [--out FILE]
 
 KIND: ``slab`` or ``finite``; LEG: ``flat`` (default), ``c`` or ``reverse-c``. Writes benchmarks/results/sph_leg3d.json after every point
-(resumable: finished points are kept and skipped), with the force curves. A study, not a
+(resumable: finished points are kept and skipped, a point stopped part-way resumes from its checkpoint beside --out), with the force curves. A study, not a
 timing benchmark: wall times are as run.
 """
 from __future__ import annotations
@@ -125,8 +125,13 @@ def main() -> None:
                 last[0] = time.perf_counter()
                 print(f"  {spec}: {d:.2f} / {tot:.2f} s simulated", flush=True)
 
+        # a point stopped part-way resumes from its checkpoint (removed when it finishes)
+        ck = a.out.with_name(f"{a.out.stem}.{medium.replace(' ', '_')}.{kind}.{leg}."
+                             f"{a.dx_mm:g}mm.checkpoint.npz")
         r = leg3d(mat, shape=leg, config=SPHConfig(dx=a.dx_mm * 1e-3), omega=a.omega,
-                  slab=SLAB if kind == "slab" else None, progress=progress)
+                  slab=SLAB if kind == "slab" else None, progress=progress, checkpoint=ck)
+        if r["resumed_from"]:
+            print(f"  {spec}: resumed from {ck} at step {r['resumed_from']['step']}", flush=True)
         p = {"medium": medium, "kind": kind, "leg": leg, "dx_mm": a.dx_mm, "omega_rad_s": a.omega,
              "friction_deg": round(mat.friction / DEG, 3), "youngs_MPa": mat.youngs / 1e6,
              "peak_lift_N": round(r["peak_lift"], 4), "peak_thrust_N": round(r["peak_thrust"], 4),

@@ -338,3 +338,55 @@ def test_forces_do_not_depend_on_the_number_of_threads():
     assert np.abs(f1).max() > 0
     np.testing.assert_array_equal(f1, f2)  # bitwise: fixed chunks and blocks, fixed sum order
     np.testing.assert_array_equal(s1.pos, s2.pos)
+
+
+class _Stop(Exception):
+    pass
+
+
+def test_a_3d_run_stopped_and_resumed_from_its_checkpoint_gives_the_same_forces(tmp_path, monkeypatch):
+    cfg = SPHConfig(dx=8e-3, settle_time=0.01)
+    kw = dict(config=cfg, slab=4, omega=4.0, hip_height=0.06, n_theta=55)
+    whole = P.leg3d("poppy LP", shape="c", **kw)
+    ck = tmp_path / "leg.npz"
+    calls = []
+
+    def stop_after_two_blocks(done, total):
+        calls.append(done)
+        if len(calls) == 3:  # the start and two blocks: the checkpoint holds block 2's end
+            raise _Stop
+
+    monkeypatch.setattr(P, "_run_blocks", _small_blocks(P._run_blocks))
+    with pytest.raises(_Stop):
+        P.leg3d("poppy LP", shape="c", progress=stop_after_two_blocks, checkpoint=ck, **kw)
+    assert ck.exists()
+    again = P.leg3d("poppy LP", shape="c", checkpoint=ck, **kw)
+    assert again["resumed_from"]["step"] == 2 * 300  # where it stopped
+    assert not ck.exists()  # removed at the end
+    np.testing.assert_array_equal(again["Fx"], whole["Fx"])  # bit-identical
+    np.testing.assert_array_equal(again["Fz"], whole["Fz"])
+    assert whole["resumed_from"] is None
+
+
+def _small_blocks(run_blocks):
+    # blocks of 300 steps, a checkpoint after every block
+    def wrapped(*a, **kw):
+        kw.update(block=300, checkpoint_every=0.0)
+        return run_blocks(*a, **kw)
+    return wrapped
+
+
+def test_a_3d_checkpoint_path_holding_another_file_or_run_is_refused_and_kept(tmp_path):
+    cfg = SPHConfig(dx=8e-3, settle_time=0.01)
+    kw = dict(config=cfg, slab=4, omega=4.0, hip_height=0.06, n_theta=55)
+    other = tmp_path / "notes.npz"
+    other.write_text("mine")
+    with pytest.raises(InputError, match="checkpoint.*not a terradyn checkpoint"):
+        P.leg3d("poppy LP", checkpoint=other, **kw)
+    assert other.read_text() == "mine"
+    from terradyn.sph.solver import atomic_savez
+    foreign = tmp_path / "run.npz"
+    atomic_savez(foreign, key=np.array("0123456789abcdef"), done=np.array(0))
+    with pytest.raises(InputError, match="not a checkpoint of this run"):
+        P.leg3d("poppy LP", checkpoint=foreign, **kw)
+    assert foreign.exists()

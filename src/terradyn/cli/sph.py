@@ -323,7 +323,8 @@ def leg3d_cmd(medium: str = _MEDIUM, density_kg_m3: Optional[float] = _DENSITY,
               omega: float = typer.Option(1.1, help="Angular speed, rad/s (the 2D validation's 1.1)."),
               slab: Optional[int] = typer.Option(None, help="Plane-strain configuration instead: a slab this many particles thick (>= 4) between two mirror planes."),
               out: Optional[Path] = typer.Option(None, "--out", "-o", help="Write the curves and peaks as JSON here (stdout gets the summary)."),
-              plot: Optional[Path] = typer.Option(None, help="Figure: lift and thrust against the leg angle, with the measured curve where there is one.")):
+              plot: Optional[Path] = typer.Option(None, help="Figure: lift and thrust against the leg angle, with the measured curve where there is one."),
+              checkpoint: Optional[Path] = typer.Option(None, help="Checkpoint file: written every minute; a rerun with the same options resumes from it (same forces as a run never stopped).")):
     """A leg of the rotating-leg test in 3D (its real 2.54 cm width; runs on NUMBA_NUM_THREADS threads, same forces on any number)."""
     from .. import io
     from ..sph import plate3d, plots
@@ -337,9 +338,14 @@ def leg3d_cmd(medium: str = _MEDIUM, density_kg_m3: Optional[float] = _DENSITY,
         integer("slab", slab, 4)
     io.check_output(out, "out", (".json",))
     io.check_plot(plot)
+    from ..sph.solver import check_checkpoint
+
+    check_checkpoint(checkpoint)  # never take over a file that is not a checkpoint
     mat = _material(medium, density_kg_m3, friction_deg)
     with _progress(f"SPH 3D {leg} leg, {mat.name}") as cb:
-        r = plate3d.leg3d(mat, shape=leg, config=cfg, slab=slab, omega=omega, progress=cb)
+        r = plate3d.leg3d(mat, shape=leg, config=cfg, slab=slab, omega=omega, progress=cb,
+                          checkpoint=checkpoint)
+    _resumed(r["resumed_from"])
     summary = {"medium": mat.name, "leg": leg, "kind": "slab" if slab else "finite", "dx_mm": dx_mm,
                "omega_rad_s": omega, "peak_lift_N": r["peak_lift"],
                "peak_thrust_N": r["peak_thrust"], "particles": r["particles"],

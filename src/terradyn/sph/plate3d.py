@@ -1235,6 +1235,8 @@ class Solver3D:
 
     def __init__(self, scene: Scene3D, *, plate_speed: float = 0.0):
         self.scene = sc = scene
+        self.plate_speed = plate_speed
+        self.resumed_from = None
         cfg = sc.config
         mat = sc.material
         nr = len(sc)
@@ -1416,6 +1418,28 @@ class Solver3D:
                 self._grow(code)
         return out
 
+    # ---------------------------------------------------------------------------- checkpoints
+    def state_dict(self) -> dict:
+        """Every array a later step reads (the particles, ghosts, cell order, pair lists and
+        their per-pair scratch, the parameter vectors) and the counters, so that a run resumed
+        from it is bit-identical to one never stopped. Keys ``s_<name>``."""
+        d = {f"s_{k}": v for k, v in vars(self).items() if isinstance(v, np.ndarray)}
+        d.update(s_t=np.array(self.t), s_step_count=np.array(self.step_count))
+        return d
+
+    def load_state(self, d) -> None:
+        """Restore :meth:`state_dict` (a dict or an opened .npz); arrays keep their saved
+        sizes (those that grew during the run)."""
+        keys = [k for k in d.keys() if k.startswith("s_")]
+        names = {k[2:] for k in keys} - {"t", "step_count"}
+        missing = {k for k, v in vars(self).items() if isinstance(v, np.ndarray)} - names
+        if missing:
+            raise KeyError(f"checkpoint lacks {sorted(missing)}")
+        for k in names:
+            setattr(self, k, np.ascontiguousarray(d[f"s_{k}"]))
+        self.t = float(d["s_t"])
+        self.step_count = int(d["s_step_count"])
+
     @property
     def soil(self) -> np.ndarray:
         return np.flatnonzero(self.kind[:self.nr] == SOIL)
@@ -1461,18 +1485,84 @@ def _schedule(s: Solver3D, duration: float):
     return ts, settling, np.maximum(ts - s.settle_time, 0.0), np.where(settling, s.settle_damping, 0.0)
 
 
-def _run_blocks(s: Solver3D, pose, damp, progress=None, after=None, block: int = 2000):
+def run_key(scene: Scene3D, pose, damp) -> str:
+    """A hash of everything that defines a 3D run (scene, material, settings and the per-step
+    motion): a checkpoint resumes only the run that wrote it."""
+    import hashlib
+    import json
+    from dataclasses import asdict
+
+    h = hashlib.sha256()
+    cfg = {k: v for k, v in asdict(scene.config).items() if k != "backend"}
+    h.update(json.dumps({"scene": "3d", "config": cfg, "material": scene.material.describe(),
+                         "meta": scene.meta}, sort_keys=True, default=str).encode())
+    for a in (scene.pos, scene.kind, scene.mass, scene.sig, scene.nz, scene.dcl, scene.grd,
+              scene.bo, scene.bn, pose, damp):
+        if a is not None:
+            h.update(np.ascontiguousarray(a).tobytes())
+    return h.hexdigest()[:16]
+
+
+def _run_blocks(s: Solver3D, pose, damp, progress=None, after=None, block: int = 2000,
+                checkpoint=None, checkpoint_every: float = 60.0):
     """Advance ``s`` through the per-step ``pose`` and ``damp`` in blocks of steps; returns
     the force per step (N, 3). ``progress(done_s, total_s)`` and ``after(steps_done,
-    forces)`` after every block."""
+    forces)`` after every block. ``checkpoint``: a file where the state is written (atomically)
+    every ``checkpoint_every`` wall-clock seconds at a block's end; a rerun of the same run
+    resumes from it, bit-identical to a run never stopped, and it is removed at the end. A
+    file there that is not a checkpoint of this run is never overwritten or removed (an
+    :class:`InputError` on ``checkpoint`` before any step). Where the run resumed is
+    ``s.resumed_from`` (None when it did not)."""
+    import warnings
+    import zipfile
+    from pathlib import Path
+
+    from .solver import _checkpoint_key, atomic_savez, check_checkpoint
+
     n = len(damp)
     forces = np.zeros((n, 3))
-    for k in range(0, n, block):
+    ck = Path(checkpoint) if checkpoint else None
+    key = run_key(s.scene, pose, damp) if ck is not None else None
+    start = 0
+    s.resumed_from = None
+    if check_checkpoint(ck, key):
+        try:
+            with np.load(ck, allow_pickle=False) as d:
+                done = int(d["done"])
+                if not 0 <= done <= n:
+                    raise ValueError("done")
+                f = d["forces"]
+                s.load_state(d)
+            forces[:done] = f[:done]
+            start = done
+            s.resumed_from = {"checkpoint": str(ck), "step": done, "time_s": done * s.dt,
+                              "total_s": n * s.dt}
+        except (OSError, KeyError, ValueError, EOFError, zipfile.BadZipFile):
+            # this run's checkpoint, damaged: start afresh (it is overwritten later)
+            s.__init__(s.scene, plate_speed=s.plate_speed)
+            s.resumed_from = None
+    if progress is not None:
+        progress(start * s.dt, n * s.dt)
+    last = time.perf_counter()
+    for k in range(start, n, block):
         forces[k:k + block] = s.advance(pose[k:k + block], damp[k:k + block])
+        upto = min(k + block, n)
+        if ck is not None and upto < n and time.perf_counter() - last > checkpoint_every:
+            if not ck.exists() or _checkpoint_key(ck) == key:
+                atomic_savez(ck, key=np.array(key), done=np.array(upto),
+                             forces=forces[:upto], **s.state_dict())
+            else:
+                warnings.warn(f"checkpoint: {ck} was replaced by a file this run did not "
+                              "write; it is left alone and the run no longer checkpoints",
+                              RuntimeWarning, stacklevel=2)
+                ck = None
+            last = time.perf_counter()
         if progress is not None:
-            progress(min(k + block, n) * s.dt, n * s.dt)
+            progress(upto * s.dt, n * s.dt)
         if after is not None:
-            after(min(k + block, n), forces)
+            after(upto, forces)
+    if ck is not None and _checkpoint_key(ck) == key:
+        ck.unlink(missing_ok=True)
     return forces
 
 
@@ -1482,7 +1572,7 @@ def plate_push3d(medium: str | GranularMaterial = "3 mm glass CP", *, dx: float 
                  depth: float | None = None, speed: float = PLATE_TEST["speed_m_s"],
                  push_depth: float = PLATE_TEST["depth_m"], n_samples: int = PLATE_TEST["n_samples"],
                  fit_from: float = PLATE_TEST["fit_from_m"], realization: int = 0,
-                 mirror_x: bool = True, progress=None, partial=None) -> dict:
+                 mirror_x: bool = True, progress=None, partial=None, checkpoint=None) -> dict:
     """The plate test of :data:`~terradyn.sph.calibration.PLATE_TEST` in 3D: the plate
     pushed straight down at ``speed`` from dx/2 above the surface to ``push_depth`` (centre
     depth), sampled at ``n_samples`` times; stress = whole-plate vertical force / area.
@@ -1519,7 +1609,8 @@ def plate_push3d(medium: str | GranularMaterial = "3 mm glass CP", *, dx: float 
             partial(-(z0 - speed * tt), np.interp(tt, ts[:upto][keep] - s.settle_time,
                                                   forces[:upto][keep, 2]) * fac / area)
 
-    forces = _run_blocks(s, pose, damp, progress, after if partial is not None else None)
+    forces = _run_blocks(s, pose, damp, progress, after if partial is not None else None,
+                         checkpoint=checkpoint)
     keep = ~settling
     t_rec = ts[keep] - s.settle_time
     fz = np.interp(t, t_rec, forces[keep, 2]) * fac
@@ -1533,14 +1624,16 @@ def plate_push3d(medium: str | GranularMaterial = "3 mm glass CP", *, dx: float 
             "fz_quarter_N": np.interp(t, t_rec, forces[keep, 2]),
             "force_factor": fac, "area_m2": area, "steps": nsteps, "dt_s": s.dt,
             "particles": s.nr, "ghosts": int(s.ip[I_NG]), "pairs": int(s.ip[I_NSS] + s.ip[I_NSB]),
-            "lost": s.lost, "wall_s": wall, "scene": sc.meta, "solver": s}
+            "lost": s.lost, "wall_s": wall, "scene": sc.meta, "solver": s,
+            "resumed_from": s.resumed_from}
 
 
 def plate_drag3d(medium: str | GranularMaterial = "3 mm glass CP", *, dx: float = 4e-3,
                  config: SPHConfig | None = None, slab: int | None = None,
                  half_x: float = 0.08, half_y: float | None = None, depth: float | None = None,
                  centre_depth: float = 0.03, travel: float = 0.02, speed: float = 0.02,
-                 n_samples: int = 41, realization: int = 0, progress=None) -> dict:
+                 n_samples: int = 41, realization: int = 0, progress=None,
+                 checkpoint=None) -> dict:
     """Li 2013's plate held vertical (attack angle beta = pi/2) and pushed horizontally
     (gamma = 0) in 3D: the virtual rig's point (:func:`terradyn.sph.suite.rig_point`) with
     the plate's real 2.54 cm width instead of plane strain. The plate's centre is
@@ -1550,7 +1643,8 @@ def plate_drag3d(medium: str | GranularMaterial = "3 mm glass CP", *, dx: float 
     the motion) and alpha_z (up), N/m^3. ``slab``: the plane-strain configuration (the
     plate spans a slab between two symmetry planes; the 2D rig's geometry in this code).
     Bed: x in [-half_x, half_x] (the 2D rig's 16 cm), y in [0, half_y] (default 3 plate
-    widths), ``depth`` (default the 2D rig's centre depth + travel/2 + 5 cm)."""
+    widths), ``depth`` (default the 2D rig's centre depth + travel/2 + 5 cm). ``checkpoint``:
+    a file to resume from (see :func:`_run_blocks`)."""
     positive("speed", speed, "m/s")
     positive("travel", travel, "m")
     integer("n_samples", n_samples, 3)
@@ -1571,7 +1665,7 @@ def plate_drag3d(medium: str | GranularMaterial = "3 mm glass CP", *, dx: float 
     pose[:, 1] = -centre_depth
     pose[:, 2] = -0.5 * math.pi
     pose[:, 3] = np.where(settling, 0.0, speed)
-    forces = _run_blocks(s, pose, damp, progress)
+    forces = _run_blocks(s, pose, damp, progress, checkpoint=checkpoint)
     fac = force_factor(sc)
     area = plate_area(sc)
     keep = ~settling
@@ -1584,7 +1678,8 @@ def plate_drag3d(medium: str | GranularMaterial = "3 mm glass CP", *, dx: float 
             "alpha_z": float(np.mean(fz[late] / (area * centre_depth))),
             "time": t, "fx_N": fx, "fz_N": fz, "force_factor": fac, "area_m2": area,
             "steps": nsteps, "dt_s": s.dt, "particles": s.nr, "ghosts": int(s.ip[I_NG]),
-            "lost": s.lost, "wall_s": time.perf_counter() - t_wall, "scene": sc.meta}
+            "lost": s.lost, "wall_s": time.perf_counter() - t_wall, "scene": sc.meta,
+            "resumed_from": s.resumed_from}
 
 
 #: The rotating-leg test's leg shapes in 3D: curvature (chord / (2 radius)) as
@@ -1604,7 +1699,8 @@ def leg3d(medium: str | GranularMaterial = "poppy LP", *, shape: str = "flat",
           half_y: float | None = None, omega: float = 1.1, hip_height: float = 2.0 * CM,
           length: float = 7.62 * CM, width: float = PLATE_WIDTH,
           thickness: float = PLATE_THICKNESS, pad: float = 0.06, n_theta: int = 271,
-          realization: int = 0, curvature: float | None = None, progress=None) -> dict:
+          realization: int = 0, curvature: float | None = None, progress=None,
+          checkpoint=None) -> dict:
     """A leg of the rotating-leg test (:func:`terradyn.sph.suite.leg_vs_measured`: hip
     ``hip_height`` above the surface, omega rad/s, -135..135 deg sampled at ``n_theta``
     angles) in 3D: a rigid leg of chord ``length``, ``width`` and ``thickness`` hanging from
@@ -1617,8 +1713,9 @@ def leg3d(medium: str | GranularMaterial = "poppy LP", *, shape: str = "flat",
     2h + dx of the bed is run (as in 2D), after the bed has settled with the leg above it.
     Bed as the 2D test's (:func:`terradyn.sph.api.bed_extent`: the leg's path below the
     surface plus ``pad``). ``curvature``: any other arc (chord / (2 radius), in [-1, 1];
-    overrides ``shape``). Returns theta (rad), Fx (thrust, + forward), Fz (lift, + up) in
-    N, peaks, counts and timings."""
+    overrides ``shape``). ``checkpoint``: a file where the run's state is kept (every minute)
+    and a rerun resumes from (:func:`_run_blocks`). Returns theta (rad), Fx (thrust, +
+    forward), Fz (lift, + up) in N, peaks, counts, timings and ``resumed_from``."""
     k = leg_curvature(shape) if curvature is None else float(curvature)
     in_range("curvature", k, -1.0, 1.0, "(chord / (2 radius))")
     positive("omega", omega, "rad/s")
@@ -1663,7 +1760,7 @@ def leg3d(medium: str | GranularMaterial = "poppy LP", *, shape: str = "flat",
     th = th0 + omega * tm
     pose = pose_at(th)
     pose[settling, 3:] = 0.0  # the leg waits above the bed while it settles
-    forces = _run_blocks(s, pose, damp, progress)
+    forces = _run_blocks(s, pose, damp, progress, checkpoint=checkpoint)
     fac = force_factor(sc)
     keep = ~settling
     Fx = np.zeros(n_theta)
@@ -1676,7 +1773,8 @@ def leg3d(medium: str | GranularMaterial = "poppy LP", *, shape: str = "flat",
             "dt_s": s.dt, "particles": s.nr, "ghosts": int(s.ip[I_NG]), "lost": s.lost,
             "wall_s": time.perf_counter() - t_wall, "scene": sc.meta,
             "shape": shape if curvature is None else None, "curvature": k,
-            "window_deg": [float(theta[i0] * 180 / math.pi), float(theta[i1] * 180 / math.pi)]}
+            "window_deg": [float(theta[i0] * 180 / math.pi), float(theta[i1] * 180 / math.pi)],
+            "resumed_from": s.resumed_from}
 
 
 def flat_leg3d(medium: str | GranularMaterial = "poppy LP", **kw) -> dict:

@@ -490,18 +490,25 @@ def check_checkpoint(path: str | Path | None, key: str | None = None) -> bool:
     return True
 
 
-def _save_checkpoint(path: Path, solver: Solver, key: str, rec, nrec) -> None:
-    """Write the state next to ``path`` under a name of this process's own, then rename it
-    over ``path`` (atomic): a kill leaves the old checkpoint or the new one, never half of
-    one, and two processes checkpointing the same scene never write into one file."""
+def atomic_savez(path: Path, **arrays) -> None:
+    """Write ``arrays`` as an .npz next to ``path`` under a name of this process's own, then
+    rename it over ``path`` (atomic): a kill leaves the old checkpoint or the new one, never
+    half of one, and two processes checkpointing the same scene never write into one file."""
+    path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
     tmp = path.with_name(f"{path.name}.{os.getpid()}.{uuid.uuid4().hex[:8]}.tmp.npz")
     try:
-        np.savez(tmp, key=np.array(key), nrec=np.array(nrec), rec=rec[:nrec],
-                 **solver.state_dict())
+        np.savez(tmp, **arrays)
         os.replace(tmp, path)
     finally:
         tmp.unlink(missing_ok=True)
+
+
+def _save_checkpoint(path: Path, solver: Solver, key: str, rec, nrec) -> None:
+    """The 2D run's checkpoint: its key, force record and :meth:`Solver.state_dict`
+    (:func:`atomic_savez`)."""
+    atomic_savez(path, key=np.array(key), nrec=np.array(nrec), rec=rec[:nrec],
+                 **solver.state_dict())
 
 
 def lowpass(t: np.ndarray, y: np.ndarray, cutoff_hz: float, order: int = 4) -> np.ndarray:
