@@ -59,7 +59,9 @@ def run_point(medium: str, kind: str, dx: float, partial=None) -> dict:
                       depth=1.5 * (PLATE_TEST["depth_m"] + 2 * PLATE_LENGTH))
         elif kind != "finite":
             raise SystemExit(f"error: kind must be 2d, slab, finite or finite-big, got {kind!r}")
-        r = plate_push3d(mat, config=cfg, partial=partial, **kw)
+        ck = OUT.with_name(f"{OUT.stem}.{medium.replace(' ', '_')}.{kind}.{dx * 1e3:g}mm."
+                           f"{mat.friction / DEG:.2f}deg.checkpoint.npz")  # resumes a stopped run
+        r = plate_push3d(mat, config=cfg, partial=partial, checkpoint=ck, **kw)
         fz = np.asarray(r["fz_quarter_N"])
         out = {"alpha_z_N_cm3": r["alpha_z"] / N_PER_CM3, "slope_N_cm3": r["slope"] / N_PER_CM3,
                "intercept_kPa": r["intercept_Pa"] / 1e3, "depth_m": r["depth"].round(6).tolist(),
@@ -69,31 +71,41 @@ def run_point(medium: str, kind: str, dx: float, partial=None) -> dict:
                "particles": r["particles"], "ghosts": r["ghosts"], "pairs": r["pairs"],
                "steps": r["steps"], "dt_s": r["dt_s"], "lost": r["lost"], "scene": r["scene"]}
     out.update(medium=medium, kind=kind, dx_mm=dx * 1e3, friction_deg=mat.friction / DEG,
+               dp_match=mat.dp_match,
                youngs_MPa=mat.youngs / 1e6, wall_s=round(time.perf_counter() - t0, 1))
     return out
 
 
+def _phi(p: dict) -> float:
+    """A point's friction angle (deg, 2 decimals): points of other friction angles (the former
+    angle-of-repose media, the plate-calibrated ones) are kept side by side."""
+    return round(p["friction_deg"], 2)
+
+
 def summary(points: list[dict]) -> list[dict]:
     rows = []
-    by = {(p["medium"], p["kind"], p["dx_mm"]): p for p in points}
-    for medium in dict.fromkeys(p["medium"] for p in points):
-        for dx in sorted({p["dx_mm"] for p in points if p["medium"] == medium}):
-            g = {k: by.get((medium, k, dx), {}).get("alpha_z_N_cm3")
-                 for k in ("2d", "slab", "finite", "finite-big")}
-            phi = from_medium(medium).friction
-            row = {"medium": medium, "dx_mm": dx, "alpha_z_2d": g["2d"], "alpha_z_3d_slab": g["slab"],
-                   "alpha_z_3d_finite": g["finite"], "alpha_z_3d_finite_big": g["finite-big"],
-                   "alpha_z_measured": alpha_z_plate_measured(medium) / N_PER_CM3,
-                   "shape_factor_sq": round(shape_factor(PLATE_LENGTH, PLATE_WIDTH, phi), 4)}
-            if g["2d"] and g["slab"]:
-                row["slab_over_2d"] = round(g["slab"] / g["2d"], 4)
-            if g["finite"] and g["slab"]:
-                row["finite_over_slab"] = round(g["finite"] / g["slab"], 4)
-            if g["finite"] and g["2d"]:
-                row["finite_over_2d"] = round(g["finite"] / g["2d"], 4)
-            if g["finite"]:
-                row["finite_vs_measured"] = round(g["finite"] / row["alpha_z_measured"] - 1, 4)
-            rows.append(row)
+    by = {(p["medium"], p["kind"], p["dx_mm"], _phi(p)): p for p in points}
+    for medium, dx, phi_deg in sorted({(p["medium"], p["dx_mm"], _phi(p)) for p in points}):
+        g = {k: by.get((medium, k, dx, phi_deg), {}).get("alpha_z_N_cm3")
+             for k in ("2d", "slab", "finite", "finite-big")}
+        phi = phi_deg * DEG
+        pts = [q for q in by.values() if (q["medium"], q["dx_mm"], _phi(q)) == (medium, dx, phi_deg)]
+        row = {"medium": medium, "dx_mm": dx, "friction_deg": phi_deg,
+               # the first points predate the corrected match: they ran the former cone
+               "dp_match": pts[0].get("dp_match", "bui2008"),
+               "alpha_z_2d": g["2d"], "alpha_z_3d_slab": g["slab"],
+               "alpha_z_3d_finite": g["finite"], "alpha_z_3d_finite_big": g["finite-big"],
+               "alpha_z_measured": alpha_z_plate_measured(medium) / N_PER_CM3,
+               "shape_factor_sq": round(shape_factor(PLATE_LENGTH, PLATE_WIDTH, phi), 4)}
+        if g["2d"] and g["slab"]:
+            row["slab_over_2d"] = round(g["slab"] / g["2d"], 4)
+        if g["finite"] and g["slab"]:
+            row["finite_over_slab"] = round(g["finite"] / g["slab"], 4)
+        if g["finite"] and g["2d"]:
+            row["finite_over_2d"] = round(g["finite"] / g["2d"], 4)
+        if g["finite"]:
+            row["finite_vs_measured"] = round(g["finite"] / row["alpha_z_measured"] - 1, 4)
+        rows.append(row)
     return rows
 
 
@@ -111,8 +123,8 @@ def main() -> None:
                       f"{os.environ.get('NUMBA_NUM_THREADS', 'default')}")
     for spec in a.points:
         medium, _, kind = spec.rpartition(":")
-        key = (medium, kind, a.dx_mm)
-        old = [p for p in res["points"] if (p["medium"], p["kind"], p["dx_mm"]) == key]
+        key = (medium, kind, a.dx_mm, round(from_medium(medium).friction / DEG, 2))
+        old = [p for p in res["points"] if (p["medium"], p["kind"], p["dx_mm"], _phi(p)) == key]
         if old and not a.redo:
             print(f"{spec}: done ({old[0]['alpha_z_N_cm3']:.4f} N/cm^3), skipped", flush=True)
             continue
@@ -127,7 +139,8 @@ def main() -> None:
 
         p = run_point(medium, kind, a.dx_mm * 1e-3, partial)
         res.get("partial", {}).pop(spec, None)
-        res["points"] = [q for q in res["points"] if (q["medium"], q["kind"], q["dx_mm"]) != key]
+        res["points"] = [q for q in res["points"]
+                         if (q["medium"], q["kind"], q["dx_mm"], _phi(q)) != key]
         res["points"].append(p)
         res["summary"] = summary(res["points"])
         atomic_write_text(OUT, json.dumps(res, indent=1))

@@ -174,6 +174,17 @@ def test_interrupted_run_resumes_says_so_and_matches(monkeypatch, capsys, tmp_pa
                                         (["--out", "x.xlsx"], "out"), (["--medium", "nope"], "medium"),
                                         (["--plot", "f.xyz"], "plot"), (["--leg", "oval"], "leg")])
 def test_leg3d_bad_input_is_one_line_before_work(monkeypatch, capsys, args, field):
+    _leg3d_refused(monkeypatch, capsys, args, field)
+
+
+def test_leg3d_refuses_a_checkpoint_path_holding_another_file(monkeypatch, capsys, tmp_path):
+    mine = tmp_path / "mine.npz"
+    mine.write_text("not a checkpoint")
+    _leg3d_refused(monkeypatch, capsys, ["--checkpoint", str(mine)], "checkpoint")
+    assert mine.read_text() == "not a checkpoint"
+
+
+def _leg3d_refused(monkeypatch, capsys, args, field):
     from terradyn.sph import plate3d
 
     def boom(*a, **k):

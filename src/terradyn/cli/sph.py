@@ -345,7 +345,7 @@ def leg3d_cmd(medium: str = _MEDIUM, density_kg_m3: Optional[float] = _DENSITY,
     with _progress(f"SPH 3D {leg} leg, {mat.name}") as cb:
         r = plate3d.leg3d(mat, shape=leg, config=cfg, slab=slab, omega=omega, progress=cb,
                           checkpoint=checkpoint)
-    _resumed(r["resumed_from"])
+    _resumed(r.get("resumed_from"))
     summary = {"medium": mat.name, "leg": leg, "kind": "slab" if slab else "finite", "dx_mm": dx_mm,
                "omega_rad_s": omega, "peak_lift_N": r["peak_lift"],
                "peak_thrust_N": r["peak_thrust"], "particles": r["particles"],
