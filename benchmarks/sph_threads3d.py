@@ -14,7 +14,8 @@ bitwise as part of the run.
 ``--baseline-src``: the ``src`` folder of a checkout of the serial code, e.g.
 ``git worktree add /tmp/serial3d 2ab80eb`` then ``--baseline-src /tmp/serial3d/src`` (the
 last commit before the parallel kernels; same API). Writes
-benchmarks/results/sph_threads3d.json.
+benchmarks/results/sph_threads3d.json (``--out``), with the load average before and after:
+"idle" means no busy process of this benchmark's own, so run it on an otherwise idle machine.
 """
 from __future__ import annotations
 
@@ -85,7 +86,9 @@ def main() -> None:
     ap.add_argument("--quick", action="store_true", help="fewer steps (a smoke run)")
     ap.add_argument("--steps", type=int, default=None, help="timed steps (default 600; quick 60)")
     ap.add_argument("--baseline-src", default=None, help="src/ of the serial code's checkout")
+    ap.add_argument("--out", type=Path, default=OUT, help="result file (default: %(default)s)")
     a = ap.parse_args()
+    load_before = os.getloadavg()[0]
     steps = a.steps or (60 if a.quick else 600)
     warm = 20
     configs = [("parallel kernels, 1 thread", 1, None), ("parallel kernels, 2 threads", 2, None)]
@@ -120,12 +123,13 @@ def main() -> None:
                 r["speedup_vs_parallel_1_thread"] = one["ms_per_step"] / r["ms_per_step"]
     bitwise = {str(k): bool(np.array_equal(v[0], v[1])) for k, v in same.items()}
     res = {"machine": {"platform": platform.platform(), "cpus": os.cpu_count(),
-                       "load_avg_1min": os.getloadavg()[0]},
+                       "load_avg_1min_before": load_before,
+                       "load_avg_1min_after": os.getloadavg()[0]},
            "scene": "3D leg bed (poppy LP, 4 mm, flat leg dragged at theta = 0)",
            "steps": steps, "warmup_steps": warm, "rows": rows,
            "forces_bitwise_equal_1_vs_2_threads": bitwise}
     if not a.quick:
-        atomic_write_text(OUT, json.dumps(res, indent=1))
+        atomic_write_text(a.out, json.dumps(res, indent=1))
     for r in rows:
         print(f"{r['config']:38s} busy={r['busy_processes']}  x{r['speedup_vs_parallel_1_thread']:.2f}"
               " vs parallel 1 thread")
