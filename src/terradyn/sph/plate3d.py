@@ -1538,9 +1538,9 @@ def _run_blocks(s: Solver3D, pose, damp, progress=None, after=None, block: int =
             s.resumed_from = {"checkpoint": str(ck), "step": done, "time_s": done * s.dt,
                               "total_s": n * s.dt}
         except (OSError, KeyError, ValueError, EOFError, zipfile.BadZipFile):
-            # this run's checkpoint, damaged: start afresh (it is overwritten later)
+            # this run's checkpoint, damaged: start afresh from the scene (it is overwritten
+            # at the next checkpoint); load_state may have replaced some arrays already
             s.__init__(s.scene, plate_speed=s.plate_speed)
-            s.resumed_from = None
     if progress is not None:
         progress(start * s.dt, n * s.dt)
     last = time.perf_counter()
