@@ -114,13 +114,26 @@ def main() -> None:
     ap.add_argument("--points", nargs="+", default=DEFAULT, help="MEDIUM:KIND, in order")
     ap.add_argument("--dx-mm", type=float, default=4.0)
     ap.add_argument("--redo", action="store_true")
+    ap.add_argument("--out", type=Path, default=OUT,
+                    help="results file (default: %(default)s); a separate one per process lets two "
+                         "processes run points side by side (merge them with --merge)")
+    ap.add_argument("--merge", type=Path, nargs="+", default=[],
+                    help="results files whose points are merged into --out (no runs)")
     a = ap.parse_args()
-    res = (json.loads(OUT.read_text()) if OUT.exists() else
+    out = a.out
+    res = (json.loads(out.read_text()) if out.exists() else
            {"what": "SPH plate test alpha_z(0, pi/2) in 2D, 3D plane-strain slab and 3D finite plate",
             "plate_test": PLATE_TEST, "points": []})
     res["machine"] = (f"{platform.processor() or platform.machine()}, {os.cpu_count()} cores "
                       "shared with other developers' runs, NUMBA_NUM_THREADS="
                       f"{os.environ.get('NUMBA_NUM_THREADS', 'default')}")
+    if a.merge:
+        for f in a.merge:
+            for q in json.loads(f.read_text())["points"]:
+                key = (q["medium"], q["kind"], q["dx_mm"], _phi(q))
+                res["points"] = [p for p in res["points"]
+                                 if (p["medium"], p["kind"], p["dx_mm"], _phi(p)) != key] + [q]
+        a.points = []
     for spec in a.points:
         medium, _, kind = spec.rpartition(":")
         key = (medium, kind, a.dx_mm, round(from_medium(medium).friction / DEG, 2))
@@ -135,7 +148,7 @@ def main() -> None:
             res.setdefault("partial", {})[spec] = {
                 "depth_reached_m": float(d[-1]), "alpha_z_so_far_N_cm3": fit["alpha_z"] / N_PER_CM3,
                 "depth_m": d.round(6).tolist(), "stress_kPa": (st / 1e3).round(5).tolist()}
-            atomic_write_text(OUT, json.dumps(res, indent=1))
+            atomic_write_text(out, json.dumps(res, indent=1))
 
         p = run_point(medium, kind, a.dx_mm * 1e-3, partial)
         res.get("partial", {}).pop(spec, None)
@@ -143,12 +156,12 @@ def main() -> None:
                          if (q["medium"], q["kind"], q["dx_mm"], _phi(q)) != key]
         res["points"].append(p)
         res["summary"] = summary(res["points"])
-        atomic_write_text(OUT, json.dumps(res, indent=1))
+        atomic_write_text(out, json.dumps(res, indent=1))
         print(f"{spec}: alpha_z {p['alpha_z_N_cm3']:.4f} N/cm^3 (free slope "
               f"{p['slope_N_cm3']:.4f}, intercept {p['intercept_kPa']:.2f} kPa), {p['wall_s']:.0f} s",
               flush=True)
     res["summary"] = summary(res["points"])
-    atomic_write_text(OUT, json.dumps(res, indent=1))
+    atomic_write_text(out, json.dumps(res, indent=1))
     for row in res["summary"]:
         print(json.dumps(row))
 
