@@ -8,8 +8,12 @@ Per physics step of the demo (C legs on poppy LP, the demo's gait), the MuJoCo p
   targets as the ctrl schedule; the phases are timed inside the loop (clock_gettime); the rest
   rule on (default), and the same with the plain explicit force (``stick=False``), with the
   float32 element loop, with the element law on whole runs of touching clusters instead of
-  their gathered elements in the bed (``cluster_runs_no_gather``), and with the bed test per
+  their gathered elements in the bed (``cluster_runs_no_gather``), on one span per body from
+  its first touching cluster to its last (``cluster_span``, float64 and float32), and with the bed test per
   body only (no clusters: ``body_box_only``);
+* ``compiled_loop_scalar_element_law``: ``compiled_loop`` in a child process compiled with
+  LLVM's loop vectorizer off (``NUMBA_LOOP_VECTORIZE=0``): the element law as scalar code, as
+  it ran until 2026-12-04, when a conditional load kept the loop from vectorizing;
 * ``python_per_step``: the per-step Python path (``mj_step1``; ``terrain.apply``;
   ``mj_step2``; ``terrain.remove``; the gait line counts as MuJoCo's part), timed with
   perf_counter;
@@ -24,7 +28,7 @@ left out (their fraction is reported), the mean of the others; the best (lowest)
 runs. Also the simulated-to-wall-clock ratio of each loop (untimed run, wall clock, all
 steps; the best of the repeats, all of them in the JSON). Everything again with two busy processes on the cores (``busy``).
 
-Usage: python benchmarks/bench_mujoco_terrain.py [--quick]
+Usage: python benchmarks/bench_mujoco_terrain.py [--quick] [--case NAME: one case, a JSON line]
 (writes benchmarks/results/mujoco_terrain.json)
 """
 from __future__ import annotations
@@ -66,12 +70,12 @@ def _summary(step_times: np.ndarray, wall: float, steps: int, dt: float, **extra
 
 
 def compiled(stick: bool = True, precision: str = "float64", terrain_on: bool = True,
-             cluster: int | None = None, gather: bool = True) -> dict:
+             cluster: int | None = None, gather: str = "gather") -> dict:
     dt = md.HEXAPOD.timestep
     out = {}
     for timed in (True, False):  # timed phases; then an untimed run for the wall clock
         model, data, terrain = md.build("c", "poppy LP", stick=stick)
-        if precision != "float64" or cluster or not gather:
+        if precision != "float64" or cluster or gather != "gather":
             keep = am.CLUSTER, am.GATHER
             am.CLUSTER, am.GATHER = cluster or keep[0], gather
             try:
@@ -138,12 +142,32 @@ def python_loop(baseline: bool = False) -> dict:
     return _summary(times, wall, STEPS, dt, elements=terrain.n_elements, **extra)
 
 
+#: Numba cache of the child processes that compile with LLVM's loop vectorizer off (made in main).
+SCALAR_CACHE: list[str] = []
+
+
+def scalar_case() -> dict:
+    """``compiled_loop`` in a child process whose LLVM loop vectorizer is off
+    (NUMBA_LOOP_VECTORIZE=0, its own Numba cache): the element law as scalar code, as it ran
+    before 2026-12-04 (a conditional load then kept the loop from vectorizing)."""
+    if not SCALAR_CACHE:
+        import tempfile
+        SCALAR_CACHE.append(tempfile.mkdtemp(prefix="terradyn-scalar-numba-"))
+    env = dict(os.environ, NUMBA_LOOP_VECTORIZE="0", NUMBA_CACHE_DIR=SCALAR_CACHE[0])
+    r = subprocess.run([sys.executable, __file__, "--case", "compiled_loop"] + (["--quick"] if QUICK else []),
+                       env=env, capture_output=True, text=True, check=True)
+    return json.loads(r.stdout.strip().splitlines()[-1])
+
+
 CASES = {
     "compiled_loop": lambda: compiled(True),
+    "compiled_loop_scalar_element_law": scalar_case,
     "compiled_loop_plain_force": lambda: compiled(False),
     "compiled_loop_float32": lambda: compiled(True, "float32"),
-    "compiled_loop_cluster_runs_no_gather": lambda: compiled(True, gather=False),
-    "compiled_loop_body_box_only": lambda: compiled(True, cluster=10 ** 9, gather=False),
+    "compiled_loop_cluster_runs_no_gather": lambda: compiled(True, gather="runs"),
+    "compiled_loop_cluster_span": lambda: compiled(True, gather="span"),
+    "compiled_loop_cluster_span_float32": lambda: compiled(True, "float32", gather="span"),
+    "compiled_loop_body_box_only": lambda: compiled(True, cluster=10 ** 9, gather="runs"),
     "python_per_step": lambda: python_loop(False),
     "baseline_per_body_evaluator_applyFT": lambda: python_loop(True),
     "mujoco_alone_compiled": lambda: compiled(True, terrain_on=False),
@@ -166,8 +190,12 @@ def measure() -> dict:
                   best["compiled_loop_plain_force"]["terrain_us_per_step"] / c["terrain_us_per_step"],
               "no_gather_over_gather_terrain_time":
                   best["compiled_loop_cluster_runs_no_gather"]["terrain_us_per_step"] / c["terrain_us_per_step"],
+              "span_over_gather_terrain_time":
+                  best["compiled_loop_cluster_span"]["terrain_us_per_step"] / c["terrain_us_per_step"],
               "body_box_only_over_clusters_terrain_time":
                   best["compiled_loop_body_box_only"]["terrain_us_per_step"] / c["terrain_us_per_step"],
+              "scalar_over_simd_terrain_time":
+                  best["compiled_loop_scalar_element_law"]["terrain_us_per_step"] / c["terrain_us_per_step"],
               "float32_over_float64_terrain_time":
                   best["compiled_loop_float32"]["terrain_us_per_step"] / c["terrain_us_per_step"]}
     return {"load_average_1min_before": os.getloadavg()[0], "cases": best, "ratios": ratios,
@@ -187,6 +215,9 @@ def _print(name: str, r: dict) -> None:
 
 
 def main():
+    if "--case" in sys.argv:  # one case, its result as a JSON line (the scalar child process)
+        print(json.dumps(CASES[sys.argv[sys.argv.index("--case") + 1]]()))
+        return
     out = Path(__file__).parent / "results" / "mujoco_terrain.json"
     out.parent.mkdir(exist_ok=True)
     rows = {"idle": measure()}
@@ -213,6 +244,9 @@ def main():
                      "the best of the repeats",
         "target_terrain_share_of_step": TARGET, "rows": rows}, indent=1) + "\n")
     print(f"wrote {out}")
+    if SCALAR_CACHE:  # the child processes' cache, made by this run
+        import shutil
+        shutil.rmtree(SCALAR_CACHE[0], ignore_errors=True)
 
 
 if __name__ == "__main__":

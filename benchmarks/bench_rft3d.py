@@ -8,6 +8,8 @@ small RFT calls (2D standard curve, one foot evaluation) idle and on a busy mach
   region, NumPy) - p50 / p99 over many calls;
 * 2D standard curve (c-leg, 100 elements, 271 angles): the serial kernel that the work-size
   rule picks, against the parallel one it replaced for small calls, p50 / p99;
+the serial batch again compiled with LLVM's loop vectorizer off (a child process,
+``NUMBA_LOOP_VECTORIZE=0``: the scalar code the element loop ran as until 2026-12-04);
 each with no extra load and with two busy processes (``while True: pass``) on the cores.
 
 Usage: python benchmarks/bench_rft3d.py [--quick]    Writes benchmarks/results/rft3d.json.
@@ -17,7 +19,9 @@ from __future__ import annotations
 import json
 import os
 import platform
+import subprocess
 import sys
+import tempfile
 import time
 from pathlib import Path
 
@@ -73,6 +77,26 @@ def poses(S, rng):
     return X, q, rng.normal(0, 0.2, (S, 3)), rng.normal(0, 0.5, (S, 3))
 
 
+def batch_serial(X, q, V, W) -> dict:
+    """Element evaluations per second of the serial kernel, float64 and float32."""
+    foot, med = foot_sole(), r3.medium3d("poppy LP")
+    return {f"compiled {n}serial": len(X) * len(foot) / best(
+        lambda dt=dt: r3.wrench_batch(foot, X, q, V, W, med, parallel=False, dtype=dt))
+        for n, dt in (("", np.float64), ("float32 ", np.float32))}
+
+
+def scalar_batch() -> dict:
+    """:func:`batch_serial` in a child process compiled with LLVM's loop vectorizer off
+    (NUMBA_LOOP_VECTORIZE=0, a fresh Numba cache): the element loop as scalar code, as it ran
+    until 2026-12-04 (a conditional load kept it from vectorizing)."""
+    with tempfile.TemporaryDirectory(prefix="terradyn-scalar-numba-") as cache:
+        env = dict(os.environ, NUMBA_LOOP_VECTORIZE="0", NUMBA_CACHE_DIR=cache)
+        r = subprocess.run([sys.executable, __file__, "--scalar-child"] + (["--quick"] if QUICK else []),
+                           env=env, capture_output=True, text=True, check=True)
+    return {f"{k}, loop vectorizer off (scalar)": v
+            for k, v in json.loads(r.stdout.strip().splitlines()[-1]).items()}
+
+
 def measure(load: int) -> dict:
     rng = np.random.default_rng(0)
     foot = foot_sole()
@@ -91,6 +115,7 @@ def measure(load: int) -> dict:
                           ("compiled float32 serial", False, np.float32)):
         t = best(lambda: r3.wrench_batch(foot, X, q, V, W, med, parallel=par, dtype=dt))
         batch[name] = S * n / t
+    batch.update(scalar_batch())
     Sn = 50 if QUICK else 200
     t = best(lambda: r3.element_tractions(foot, X[:Sn], q[:Sn], V[:Sn], W[:Sn], med), 3)
     batch["numpy (element_tractions)"] = Sn * n / t
@@ -127,6 +152,10 @@ def measure(load: int) -> dict:
 
 
 def main() -> None:
+    if "--scalar-child" in sys.argv:
+        X, q, V, W = poses(400 if QUICK else 4000, np.random.default_rng(0))
+        print(json.dumps(batch_serial(X, q, V, W)))
+        return
     rows = []
     for load in (0, 2):
         procs = hogs(load)
@@ -144,7 +173,7 @@ def main() -> None:
         print(f"batch, foot {len(foot_sole())} triangles x {r['batch_poses']} poses "
               f"({100 * r['batch_active_fraction']:.0f} % of elements in contact):", file=sys.stderr)
         for k, v in b.items():
-            print(f"  {k:36s} {v / 1e6:9.1f} M element evaluations/s  ({v / base:6.1f} x NumPy)",
+            print(f"  {k:54s} {v / 1e6:9.1f} M element evaluations/s  ({v / base:6.1f} x NumPy)",
                   file=sys.stderr)
         for title, key in (("foot, one pose", "foot_single_pose"),
                            ("2D standard curve (c-leg, 100 el x 271 angles)", "standard_curve_2d")):
