@@ -8,8 +8,7 @@ Per physics step of the demo (C legs on poppy LP, the demo's gait), the MuJoCo p
   targets as the ctrl schedule; the phases are timed inside the loop (clock_gettime); the rest
   rule on (default), and the same with the plain explicit force (``stick=False``), with the
   float32 element loop, with the element law on whole runs of touching clusters instead of
-  their gathered elements in the bed (``cluster_runs_no_gather``), on one span per body from
-  its first touching cluster to its last (``cluster_span``, float64 and float32), and with the bed test per
+  their gathered elements in the bed (``cluster_runs_no_gather``), and with the bed test per
   body only (no clusters: ``body_box_only``);
 * ``compiled_loop_scalar_element_law``: ``compiled_loop`` in a child process compiled with
   LLVM's loop vectorizer off (``NUMBA_LOOP_VECTORIZE=0``): the element law as scalar code, as
@@ -70,12 +69,12 @@ def _summary(step_times: np.ndarray, wall: float, steps: int, dt: float, **extra
 
 
 def compiled(stick: bool = True, precision: str = "float64", terrain_on: bool = True,
-             cluster: int | None = None, gather: str = "gather") -> dict:
+             cluster: int | None = None, gather: bool = True) -> dict:
     dt = md.HEXAPOD.timestep
     out = {}
     for timed in (True, False):  # timed phases; then an untimed run for the wall clock
         model, data, terrain = md.build("c", "poppy LP", stick=stick)
-        if precision != "float64" or cluster or gather != "gather":
+        if precision != "float64" or cluster or not gather:
             keep = am.CLUSTER, am.GATHER
             am.CLUSTER, am.GATHER = cluster or keep[0], gather
             try:
@@ -164,10 +163,8 @@ CASES = {
     "compiled_loop_scalar_element_law": scalar_case,
     "compiled_loop_plain_force": lambda: compiled(False),
     "compiled_loop_float32": lambda: compiled(True, "float32"),
-    "compiled_loop_cluster_runs_no_gather": lambda: compiled(True, gather="runs"),
-    "compiled_loop_cluster_span": lambda: compiled(True, gather="span"),
-    "compiled_loop_cluster_span_float32": lambda: compiled(True, "float32", gather="span"),
-    "compiled_loop_body_box_only": lambda: compiled(True, cluster=10 ** 9, gather="runs"),
+    "compiled_loop_cluster_runs_no_gather": lambda: compiled(True, gather=False),
+    "compiled_loop_body_box_only": lambda: compiled(True, cluster=10 ** 9, gather=False),
     "python_per_step": lambda: python_loop(False),
     "baseline_per_body_evaluator_applyFT": lambda: python_loop(True),
     "mujoco_alone_compiled": lambda: compiled(True, terrain_on=False),
@@ -190,8 +187,6 @@ def measure() -> dict:
                   best["compiled_loop_plain_force"]["terrain_us_per_step"] / c["terrain_us_per_step"],
               "no_gather_over_gather_terrain_time":
                   best["compiled_loop_cluster_runs_no_gather"]["terrain_us_per_step"] / c["terrain_us_per_step"],
-              "span_over_gather_terrain_time":
-                  best["compiled_loop_cluster_span"]["terrain_us_per_step"] / c["terrain_us_per_step"],
               "body_box_only_over_clusters_terrain_time":
                   best["compiled_loop_body_box_only"]["terrain_us_per_step"] / c["terrain_us_per_step"],
               "scalar_over_simd_terrain_time":

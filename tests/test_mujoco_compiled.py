@@ -130,15 +130,11 @@ def test_each_geom_type_gets_the_rft3d_wrench(kind):
 
 def test_cluster_culling_and_float32_keep_the_wrench(monkeypatch):
     # partly buried, tilted, moving: the clusters out of the bed are skipped and the elements in
-    # the bed gathered (the default), or the runs of touching clusters evaluated whole, or one
-    # span per body from its first touching cluster to its last: all give the wrench of the
-    # whole element loop (one cluster per body); float32 within 1e-4
+    # the bed gathered (the default), or the runs of touching clusters evaluated whole: both
+    # give the wrench of the whole element loop (one cluster per body); float32 within 1e-4
     model, data, terrain = md.build("reverse-c", "poppy LP", stick=False)
-    monkeypatch.setattr(am, "GATHER", "runs")
+    monkeypatch.setattr(am, "GATHER", False)
     runs = am.GranularTerrain(model, POPPY, bodies=md.terrain_bodies(), stick=False)
-    monkeypatch.setattr(am, "GATHER", "span")
-    span = am.GranularTerrain(model, POPPY, bodies=md.terrain_bodies(), stick=False)
-    monkeypatch.setattr(am, "GATHER", "gather")
     monkeypatch.setattr(am, "CLUSTER", 10 ** 9)
     whole = am.GranularTerrain(model, POPPY, bodies=md.terrain_bodies(), stick=False)
     monkeypatch.undo()
@@ -157,7 +153,6 @@ def test_cluster_culling_and_float32_keep_the_wrench(monkeypatch):
         assert np.abs(b).max() > 0.01
         np.testing.assert_allclose(a, b, rtol=0, atol=1e-12 * np.abs(b).max())
         np.testing.assert_allclose(runs.wrenches(data), b, rtol=0, atol=1e-12 * np.abs(b).max())
-        np.testing.assert_allclose(span.wrenches(data), b, rtol=0, atol=1e-12 * np.abs(b).max())
         np.testing.assert_allclose(c, b, rtol=0, atol=1e-4 * np.abs(b).max())
         some_culled |= bool((np.abs(b).sum(1) == 0).any())
     assert some_culled  # whole bodies above the bed were skipped too

@@ -170,7 +170,7 @@ def max_generic_stress() -> float:
 # Compiled step: all terrain bodies in one call
 # ------------------------------------------------------------------------------------------
 @numba.njit(cache=True, fastmath=True, error_model="numpy")
-def _terrain_wrenches(G, C, P, meta, anc, S, box, T, o, cl, Gc, span, wk, xpos, xmat, xipos, cvel, subtree_com, cdof,
+def _terrain_wrenches(G, C, P, meta, anc, S, box, T, o, cl, Gc, wk, xpos, xmat, xipos, cvel, subtree_com, cdof,
                       qacc, surface, stick_dt, out):  # pragma: no cover - compiled
     """RFT wrench (about the CoM, world frame) of every terrain body into out (nb, 6).
 
@@ -187,10 +187,8 @@ def _terrain_wrenches(G, C, P, meta, anc, S, box, T, o, cl, Gc, span, wk, xpos, 
     element, end, box centre (3), half sizes (3)] of spatially compact runs of a body's elements
     (body b's clusters: meta[b, 6]..meta[b, 7]); the element law runs only on the clusters
     that may touch the bed: with Gc (7, n, G's type) non-empty, their elements whose centre
-    is in the bed are gathered into Gc[:, meta[b, 2]:] and evaluated in one call, else (span
-    False) the runs of touching clusters are evaluated as they are, or (span True) the one run
-    from the first touching cluster to the last (SIMD makes an element out of the bed about as
-    cheap to evaluate as to skip). wk (5, 6) float64 scratch. S (nb, 76) static floats per body: [0] the largest
+    is in the bed are gathered into Gc[:, meta[b, 2]:] and evaluated in one call, else the
+    runs of touching clusters are evaluated as they are. wk (5, 6) float64 scratch. S (nb, 76) static floats per body: [0] the largest
     element distance from the body origin, [4:40] the 6 x 6 mobility J M^-1 J^T of the CoM
     twist (v, omega) in the body frame, [40:76] its (pseudo-)inverse, the effective inertia M_b.
     cdof (nv, 6), qacc (nv,): with stick_dt > 0 the body twists are the predicted ones,
@@ -259,7 +257,7 @@ def _terrain_wrenches(G, C, P, meta, anc, S, box, T, o, cl, Gc, span, wk, xpos, 
                 if start < 0:
                     start = int(cl[c, 0])
                 end = int(cl[c, 1])
-            elif start >= 0 and (not span or c == meta[b, 7]):  # flush the run
+            elif start >= 0:  # flush the run of touching clusters
                 _block(G, T, b, start, end, C, P[b], o, b)
                 for k in range(6):
                     out[b, k] += o[b, k]
@@ -318,8 +316,8 @@ def _terrain_wrenches(G, C, P, meta, anc, S, box, T, o, cl, Gc, span, wk, xpos, 
 
 @numba.njit(cache=True, fastmath=True, error_model="numpy")
 def _run_steps(step1, step2, actuation, acceleration, m, d, nsteps, substeps, ctrl, schedule, xfrc,
-               G, C, P, meta, anc, S, box, T, o, cl, Gc, span, wk, xpos, xmat, xipos, cvel, subtree_com, cdof,
-               qacc, surface, stick_dt, out, use_terrain, clock, ts, times):  # pragma: no cover - compiled
+               G, C, P, meta, anc, S, box, T, o, cl, Gc, wk, xpos, xmat, xipos, cvel, subtree_com, cdof, qacc,
+               surface, stick_dt, out, use_terrain, clock, ts, times):  # pragma: no cover - compiled
     """``nsteps`` model steps of ``substeps`` rounds of mj_step1, terrain, mj_step2 each, in
     one compiled call: MuJoCo's C functions (``step1`` ...: ctypes functions, ``m``, ``d``
     the MjModel / MjData addresses) and the terrain kernel on MjData's own arrays. ctrl[:] =
@@ -346,7 +344,7 @@ def _run_steps(step1, step2, actuation, acceleration, m, d, nsteps, substeps, ct
                 if stick_dt > 0.0:
                     actuation(m, d)
                     acceleration(m, d)
-                _terrain_wrenches(G, C, P, meta, anc, S, box, T, o, cl, Gc, span, wk, xpos, xmat, xipos, cvel,
+                _terrain_wrenches(G, C, P, meta, anc, S, box, T, o, cl, Gc, wk, xpos, xmat, xipos, cvel,
                                   subtree_com, cdof, qacc, surface, stick_dt, out)
                 for b in range(nb):
                     for k in range(6):
@@ -428,11 +426,8 @@ def mujoco_c_functions():
 # ------------------------------------------------------------------------------------------
 #: Elements per cluster (the unit of the per-cluster bed test).
 CLUSTER = 16
-#: How the element law runs on the clusters that may touch the bed: "gather" (their elements
-#: in the bed are gathered, one kernel call per body), "runs" (each run of consecutive touching
-#: clusters as it is) or "span" (one call per body from its first touching cluster to its last).
-GATHER = "gather"
-_MODES = ("gather", "runs", "span")
+#: Gather the elements in the bed of the touching clusters (one kernel call per body).
+GATHER = True
 
 
 def _centre_box(x: np.ndarray) -> tuple:
@@ -565,10 +560,7 @@ class GranularTerrain:
         self._GT = np.ascontiguousarray(G64, dtype=dt)  # the kernel's copy, in its precision
         self._C = np.ascontiguousarray(coefficients(), dtype=dt)
         self._wk = np.zeros((5, 6))
-        if GATHER not in _MODES:
-            raise InputError("GATHER", f"must be one of {', '.join(_MODES)}, got {GATHER!r}")
-        self._Gc = np.zeros((7, self._GT.shape[1] if GATHER == "gather" else 0), dt)  # gathered elements
-        self._span = GATHER == "span"
+        self._Gc = np.zeros((7, self._GT.shape[1] if GATHER else 0), dt)  # gathered elements in the bed
         # box of the element centres of each body and of each cluster (body frame)
         self._box = np.zeros((len(meta), 6))
         cl = []
@@ -646,7 +638,7 @@ class GranularTerrain:
     def _bind(self, data) -> None:
         if self._bound is not data:  # MjData arrays never move: bind their views once
             self._args = (self._GT, self._C, self._P, self._meta, self._anc, self._S, self._box, self._T,
-                          self._o, self._cl, self._Gc, self._span, self._wk, data.xpos, data.xmat, data.xipos, data.cvel, data.subtree_com,
+                          self._o, self._cl, self._Gc, self._wk, data.xpos, data.xmat, data.xipos, data.cvel, data.subtree_com,
                           data.cdof, data.qacc_smooth)
             self._xfrc = data.xfrc_applied
             self._bound = data
