@@ -172,7 +172,8 @@ def test_interrupted_run_resumes_says_so_and_matches(monkeypatch, capsys, tmp_pa
 
 @pytest.mark.parametrize("args,field", [(["--dx-mm", "0"], "dx-mm"), (["--slab", "2"], "slab"),
                                         (["--out", "x.xlsx"], "out"), (["--medium", "nope"], "medium"),
-                                        (["--plot", "f.xyz"], "plot"), (["--leg", "oval"], "leg")])
+                                        (["--plot", "f.xyz"], "plot"), (["--leg", "oval"], "leg"),
+                                        (["--so-far"], "so-far")])
 def test_leg3d_bad_input_is_one_line_before_work(monkeypatch, capsys, args, field):
     _leg3d_refused(monkeypatch, capsys, args, field)
 

@@ -379,6 +379,19 @@ def test_a_3d_run_stopped_and_resumed_from_its_checkpoint_gives_the_same_forces(
     with pytest.raises(_Stop):
         P.leg3d("poppy LP", shape="c", progress=stop_after_two_blocks, checkpoint=ck, **kw)
     assert ck.exists()
+    # the curve so far, read from the checkpoint without running: the whole run's up to the
+    # angle reached (at or before that angle's sample), NaN after it
+    part = P.leg3d("poppy LP", shape="c", checkpoint=ck, so_far=True, **kw)
+    th = np.degrees(part["theta"])
+    seen = th <= part["reached_deg"]
+    last = np.flatnonzero(seen)[-1]
+    assert 0 < last < len(th) - 1 and np.isnan(part["Fx"][~seen]).all()
+    np.testing.assert_array_equal(part["Fx"][:last], whole["Fx"][:last])
+    np.testing.assert_array_equal(part["Fz"][:last], whole["Fz"][:last])
+    assert part["peak_lift"] == np.nanmax(part["Fz"])
+    assert ck.exists()  # read, not touched
+    with pytest.raises(InputError, match="not a checkpoint of this run"):
+        P.leg3d("poppy LP", shape="flat", checkpoint=ck, so_far=True, **kw)
     again = P.leg3d("poppy LP", shape="c", checkpoint=ck, **kw)
     assert again["resumed_from"]["step"] == 2 * 300  # where it stopped
     assert not ck.exists()  # removed at the end

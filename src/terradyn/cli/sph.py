@@ -2,6 +2,7 @@
 from __future__ import annotations
 
 import json
+import sys
 from contextlib import contextmanager
 from enum import Enum
 from pathlib import Path
@@ -324,7 +325,8 @@ def leg3d_cmd(medium: str = _MEDIUM, density_kg_m3: Optional[float] = _DENSITY,
               slab: Optional[int] = typer.Option(None, help="Plane-strain configuration instead: a slab this many particles thick (>= 4) between two mirror planes."),
               out: Optional[Path] = typer.Option(None, "--out", "-o", help="Write the curves and peaks as JSON here (stdout gets the summary)."),
               plot: Optional[Path] = typer.Option(None, help="Figure: lift and thrust against the leg angle, with the measured curve where there is one."),
-              checkpoint: Optional[Path] = typer.Option(None, help="Checkpoint file: written every minute; a rerun with the same options resumes from it (same forces as a run never stopped).")):
+              checkpoint: Optional[Path] = typer.Option(None, help="Checkpoint file: written every minute; a rerun with the same options resumes from it (same forces as a run never stopped)."),
+              so_far: bool = typer.Option(False, "--so-far", help="Run nothing: the curve and peaks so far of the run (same options) whose --checkpoint is there, stopped or still going.")):
     """A leg of the rotating-leg test in 3D (its real 2.54 cm width; runs on NUMBA_NUM_THREADS threads, same forces on any number)."""
     from .. import io
     from ..sph import plate3d, plots
@@ -340,21 +342,32 @@ def leg3d_cmd(medium: str = _MEDIUM, density_kg_m3: Optional[float] = _DENSITY,
     io.check_plot(plot)
     from ..sph.solver import check_checkpoint
 
+    if so_far and checkpoint is None:
+        raise InputError("so-far", "needs --checkpoint FILE, the checkpoint of the run to read")
     check_checkpoint(checkpoint)  # never take over a file that is not a checkpoint
     mat = _material(medium, density_kg_m3, friction_deg)
-    with _progress(f"SPH 3D {leg} leg, {mat.name}") as cb:
-        r = plate3d.leg3d(mat, shape=leg, config=cfg, slab=slab, omega=omega, progress=cb,
-                          checkpoint=checkpoint)
-    _resumed(r.get("resumed_from"))
+    if so_far:
+        r = plate3d.leg3d(mat, shape=leg, config=cfg, slab=slab, omega=omega, checkpoint=checkpoint,
+                          so_far=True)
+    else:
+        with _progress(f"SPH 3D {leg} leg, {mat.name}") as cb:
+            r = plate3d.leg3d(mat, shape=leg, config=cfg, slab=slab, omega=omega, progress=cb,
+                              checkpoint=checkpoint)
+        _resumed(r.get("resumed_from"))
     summary = {"medium": mat.name, "leg": leg, "kind": "slab" if slab else "finite", "dx_mm": dx_mm,
                "omega_rad_s": omega, "peak_lift_N": r["peak_lift"],
                "peak_thrust_N": r["peak_thrust"], "particles": r["particles"],
                "steps": r["steps"], "lost": r["lost"], "wall_s": round(r["wall_s"], 1)}
     th = r["theta"] / DEG
-    summary.update(leg_scores(mat.name, th, r["Fz"], r["Fx"], omega, leg))
+    if so_far:  # a partial curve: peaks so far, no scores over the whole stroke
+        summary.update(so_far=True, reached_deg=round(r["reached_deg"], 2))
+        print(f"so far: the run has reached {r['reached_deg']:.1f} deg; NaN after it", file=sys.stderr)
+    else:
+        summary.update(leg_scores(mat.name, th, r["Fz"], r["Fx"], omega, leg))
     if out is not None:
-        io.atomic_write_text(out, json.dumps(summary | {"theta_deg": th.tolist(), "Fz_N": r["Fz"].tolist(),
-                                                        "Fx_N": r["Fx"].tolist()}, indent=1) + "\n")
+        nan = lambda a: [None if v != v else float(v) for v in a]  # noqa: E731  (JSON has no NaN)
+        io.atomic_write_text(out, json.dumps(summary | {"theta_deg": th.tolist(), "Fz_N": nan(r["Fz"]),
+                                                        "Fx_N": nan(r["Fx"])}, indent=1) + "\n")
     if plot:
         e = measured_legs()
         e = e[(e.medium == mat.name) & (e.leg == leg)]

@@ -1700,7 +1700,7 @@ def leg3d(medium: str | GranularMaterial = "poppy LP", *, shape: str = "flat",
           length: float = 7.62 * CM, width: float = PLATE_WIDTH,
           thickness: float = PLATE_THICKNESS, pad: float = 0.06, n_theta: int = 271,
           realization: int = 0, curvature: float | None = None, progress=None,
-          checkpoint=None) -> dict:
+          checkpoint=None, so_far: bool = False) -> dict:
     """A leg of the rotating-leg test (:func:`terradyn.sph.suite.leg_vs_measured`: hip
     ``hip_height`` above the surface, omega rad/s, -135..135 deg sampled at ``n_theta``
     angles) in 3D: a rigid leg of chord ``length``, ``width`` and ``thickness`` hanging from
@@ -1714,8 +1714,11 @@ def leg3d(medium: str | GranularMaterial = "poppy LP", *, shape: str = "flat",
     Bed as the 2D test's (:func:`terradyn.sph.api.bed_extent`: the leg's path below the
     surface plus ``pad``). ``curvature``: any other arc (chord / (2 radius), in [-1, 1];
     overrides ``shape``). ``checkpoint``: a file where the run's state is kept (every minute)
-    and a rerun resumes from (:func:`_run_blocks`). Returns theta (rad), Fx (thrust, +
-    forward), Fz (lift, + up) in N, peaks, counts, timings and ``resumed_from``."""
+    and a rerun resumes from (:func:`_run_blocks`). ``so_far``: run nothing; the curve so far
+    of the run (the same arguments) whose ``checkpoint`` is there, stopped or still going:
+    angles past the one it reached are NaN, ``reached_deg`` says which, the peaks are those so
+    far. Returns theta (rad), Fx (thrust, + forward), Fz (lift, + up) in N, peaks, counts,
+    timings and ``resumed_from``."""
     k = leg_curvature(shape) if curvature is None else float(curvature)
     in_range("curvature", k, -1.0, 1.0, "(chord / (2 radius))")
     positive("omega", omega, "rad/s")
@@ -1760,21 +1763,56 @@ def leg3d(medium: str | GranularMaterial = "poppy LP", *, shape: str = "flat",
     th = th0 + omega * tm
     pose = pose_at(th)
     pose[settling, 3:] = 0.0  # the leg waits above the bed while it settles
-    forces = _run_blocks(s, pose, damp, progress, checkpoint=checkpoint)
-    fac = force_factor(sc)
     keep = ~settling
+    reached = None
+    if so_far:
+        forces, done = _checkpoint_forces(s, pose, damp, checkpoint)
+        keep &= np.arange(nsteps) < done
+        if not keep.any():
+            raise InputError("checkpoint", f"{checkpoint}: the run is still settling the bed "
+                                           "(no stroke yet)")
+        reached = float(th[keep][-1])
+    else:
+        forces = _run_blocks(s, pose, damp, progress, checkpoint=checkpoint)
+    fac = force_factor(sc)
     Fx = np.zeros(n_theta)
     Fz = np.zeros(n_theta)
     win = slice(i0, i1 + 1)
     Fx[win] = np.interp(theta[win], th[keep], forces[keep, 0]) * fac
     Fz[win] = np.interp(theta[win], th[keep], forces[keep, 2]) * fac
-    return {"theta": theta, "Fx": Fx, "Fz": Fz, "peak_lift": float(Fz.max()),
-            "peak_thrust": float(Fx.max()), "force_factor": fac, "steps": nsteps,
+    if reached is not None:
+        Fx[theta > reached] = np.nan
+        Fz[theta > reached] = np.nan
+    return {"theta": theta, "Fx": Fx, "Fz": Fz, "peak_lift": float(np.nanmax(Fz)),
+            "peak_thrust": float(np.nanmax(Fx)), "force_factor": fac, "steps": nsteps,
+            "reached_deg": None if reached is None else reached * 180 / math.pi,
             "dt_s": s.dt, "particles": s.nr, "ghosts": int(s.ip[I_NG]), "lost": s.lost,
             "wall_s": time.perf_counter() - t_wall, "scene": sc.meta,
             "shape": shape if curvature is None else None, "curvature": k,
             "window_deg": [float(theta[i0] * 180 / math.pi), float(theta[i1] * 180 / math.pi)],
             "resumed_from": s.resumed_from}
+
+
+def _checkpoint_forces(s: Solver3D, pose, damp, checkpoint) -> tuple[np.ndarray, int]:
+    """(forces per step, steps done) held in the checkpoint of this run (``run_key``)."""
+    from pathlib import Path
+
+    from .solver import _checkpoint_key
+
+    if checkpoint is None:
+        raise InputError("checkpoint", "so_far needs the checkpoint file of the run")
+    ck = Path(checkpoint)
+    got = _checkpoint_key(ck)
+    if got is None:
+        raise InputError("checkpoint", f"{ck} is not a terradyn checkpoint (missing or unreadable)")
+    if got != run_key(s.scene, pose, damp):
+        raise InputError("checkpoint", f"{ck} is not a checkpoint of this run (another scene, "
+                                       "resolution or motion): give the run's own arguments")
+    with np.load(ck, allow_pickle=False) as d:
+        done = int(d["done"])
+        f = np.zeros((len(damp), 3))
+        f[:done] = d["forces"][:done]
+    return f, done
 
 
 def flat_leg3d(medium: str | GranularMaterial = "poppy LP", **kw) -> dict:
