@@ -109,12 +109,11 @@ def measure(load: int) -> dict:
     active = r3.element_tractions(foot, X[:100], q[:100], V[:100], W[:100], med)["active"].mean()
     batch = {}
     for name, par, dt in (("compiled, work-size choice", None, np.float64),
-                          ("compiled serial", False, np.float64),
                           ("compiled parallel", True, np.float64),
-                          ("compiled float32, work-size choice", None, np.float32),
-                          ("compiled float32 serial", False, np.float32)):
+                          ("compiled float32, work-size choice", None, np.float32)):
         t = best(lambda: r3.wrench_batch(foot, X, q, V, W, med, parallel=par, dtype=dt))
         batch[name] = S * n / t
+    batch.update(batch_serial(X, q, V, W))  # "compiled serial", "compiled float32 serial"
     batch.update(scalar_batch())
     Sn = 50 if QUICK else 200
     t = best(lambda: r3.element_tractions(foot, X[:Sn], q[:Sn], V[:Sn], W[:Sn], med), 3)

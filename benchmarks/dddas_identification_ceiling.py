@@ -29,7 +29,7 @@ from pathlib import Path
 
 import numpy as np
 
-from terradyn.dddas.forecast import FOOT_LEVER_ARM, make_trial, sensor_channels
+from terradyn.dddas.forecast import FOOT_LEVER_ARM, make_trial, prior_rms, sensor_channels
 from terradyn.dddas.terrain import COMPONENTS, LEG_KINDS, MEDIA, Channel, TerrainFilter, TerrainModel, _nb_table
 
 AT = 0.3
@@ -84,11 +84,8 @@ def main():
     for leg in legs:
         t0 = time.perf_counter()
         model = TerrainModel.from_rft(leg, seed=0)
-        F0 = TerrainFilter(model, [Channel("Fz")], n_particles=2000, seed=0).forecast()
-        comp = {c: F0[:, j] for j, c in enumerate(COMPONENTS)}
-        rms_prior = {n: float(np.sqrt(np.mean(Channel(n, w, 1.0).of(comp) ** 2)))
-                     for n, w in [("Fx", {"Fx": 1.0}), ("Fz", {"Fz": 1.0}), ("torque", {"torque": 1.0}),
-                                  ("load_cell", {"torque": 1.0 / FOOT_LEVER_ARM})]}
+        rms_prior = prior_rms(model, [("Fx", {"Fx": 1.0}), ("Fz", {"Fz": 1.0}), ("torque", {"torque": 1.0}),
+                                      ("load_cell", {"torque": 1.0 / FOOT_LEVER_ARM})])
         bias_prior = {n: 0.05 * v for n, v in rms_prior.items()}
         study = [n for n, _ in sensor_channels(leg)]
         variants = {"study": (study, {}), "all_four": (["Fx", "Fz", "torque", "load_cell"], {}),

@@ -29,7 +29,7 @@ from pathlib import Path
 
 import numpy as np
 
-from terradyn.dddas.forecast import make_trial, sensor_channels
+from terradyn.dddas.forecast import make_trial, prior_rms, sensor_channels
 from terradyn.dddas.terrain import COMPONENTS, LEG_KINDS, MEDIA, Channel, TerrainFilter, TerrainModel
 from terradyn.io import atomic_write_text
 
@@ -48,10 +48,7 @@ def posterior(model, tr, obs, bias_prior, cut):
 
 def run_leg(leg: str, energy: float, trials: int) -> dict:
     model = TerrainModel.from_rft(leg, seed=0, energy=energy)
-    F0 = TerrainFilter(model, [Channel("Fz")], n_particles=2000, seed=0).forecast()
-    comp0 = {c: F0[:, j] for j, c in enumerate(COMPONENTS)}
-    bias_prior = {n: 0.05 * float(np.sqrt(np.mean(Channel(n, w, 1.0).of(comp0) ** 2)))
-                  for n, w in sensor_channels(leg)}  # as the study sets it
+    bias_prior = {n: 0.05 * v for n, v in prior_rms(model, sensor_channels(leg)).items()}  # as the study
     rng = np.random.default_rng(0)
     res = {kind: {"correct": [], "covered": [], "rel_err": [], "rel_half_width": []}
            for kind in ("rft", "surrogate")}

@@ -306,13 +306,10 @@ def test_zeta_intervals_cover_on_rft_data_with_the_default_surrogate():
     # exact posterior's 95 % zeta intervals at 30 % of the stroke cover the truth in most RFT
     # trials of the forecast study (flat leg: 88 % over 100; with energy 0.999 the truncation
     # biased the posterior and 72 % were covered; benchmarks/dddas_model_discrepancy.py)
-    from terradyn.dddas.forecast import make_trial, sensor_channels
+    from terradyn.dddas.forecast import make_trial, prior_rms, sensor_channels
 
     model = T.TerrainModel.from_rft("flat", seed=0)
-    F0 = T.TerrainFilter(model, [T.Channel("Fz")], n_particles=2000, seed=0).forecast()
-    comp0 = {c: F0[:, j] for j, c in enumerate(T.COMPONENTS)}
-    bias_prior = {n: 0.05 * float(np.sqrt(np.mean(T.Channel(n, w, 1.0).of(comp0) ** 2)))
-                  for n, w in sensor_channels("flat")}  # as the study sets it
+    bias_prior = {n: 0.05 * v for n, v in prior_rms(model, sensor_channels("flat")).items()}  # as the study
     rng = np.random.default_rng(0)
     covered = []
     for t in range(100):

@@ -90,6 +90,14 @@ def _pooled(leg: str, model: TerrainModel, n_theta: int) -> PooledLinear:
     return PooledLinear(np.concatenate(Ys))
 
 
+def prior_rms(model: TerrainModel, channels, seed: int = 0) -> dict:
+    """RMS over the stroke of each channel's prior predictive mean force (the scale of the
+    sensor-bias prior): ``channels`` (name, weights) pairs -> {name: RMS}."""
+    F0 = TerrainFilter(model, [Channel("Fz")], n_particles=2000, seed=seed).forecast()
+    comp = {c: F0[:, j] for j, c in enumerate(COMPONENTS)}
+    return {n: float(np.sqrt(np.mean(Channel(n, w, 1.0).of(comp) ** 2))) for n, w in channels}
+
+
 def make_trial(leg: str, model: TerrainModel, rng: np.random.Generator, medium: str | None = None,
                noise: float = 0.05, bias: float = 0.02, k_std: float = 0.1, n_theta: int | None = None) -> dict:
     """One synthetic RFT trial: truth (S, C), channel readings, the hidden terrain."""
@@ -218,10 +226,7 @@ def forecast_study(out: str | Path | None = None, legs: Sequence[str] = LEG_KIND
         t0 = time.perf_counter()
         model = TerrainModel.from_rft(leg, seed=seed)
         lin = _pooled(leg, model, len(model.theta))
-        # prior RMS of each channel (the bias prior's scale): from the prior predictive mean
-        F0 = TerrainFilter(model, [Channel("Fz")], n_particles=2000, seed=seed).forecast()
-        rms_prior = {n: float(np.sqrt(np.mean(Channel(n, w, 1.0).of(
-            {c: F0[:, j] for j, c in enumerate(COMPONENTS)}) ** 2))) for n, w in sensor_channels(leg)}
+        rms_prior = prior_rms(model, sensor_channels(leg), seed)
         per = {k: [] for k in res}
         cond_names += [n for n in model.inputs if n not in cond_names]
         for t in range(n_t):
