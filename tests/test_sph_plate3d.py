@@ -392,6 +392,8 @@ def test_a_3d_run_stopped_and_resumed_from_its_checkpoint_gives_the_same_forces(
     assert ck.exists()  # read, not touched
     with pytest.raises(InputError, match="not a checkpoint of this run"):
         P.leg3d("poppy LP", shape="flat", checkpoint=ck, so_far=True, **kw)
+    with pytest.raises(InputError, match="not a terradyn checkpoint"):
+        P.leg3d("poppy LP", shape="c", checkpoint=tmp_path / "none.npz", so_far=True, **kw)
     again = P.leg3d("poppy LP", shape="c", checkpoint=ck, **kw)
     assert again["resumed_from"]["step"] == 2 * 300  # where it stopped
     assert not ck.exists()  # removed at the end

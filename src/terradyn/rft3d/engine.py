@@ -260,8 +260,9 @@ def _block(G, T, j, lo, hi, C, prm, out, k):  # pragma: no cover - compiled
         tx, ty, tz = ax_ - an * nx, ay_ - an * ny, az_ - an * nz
         kt = min(one, mus * abs(an) / np.sqrt(tx * tx + ty * ty + tz * tz + tiny))
         # the mask multiplies the area: a conditional expression around the loads here kept
-        # LLVM from vectorizing the loop at all (scalar code, 3-4x slower in float64, up to
-        # ~7x in float32: benchmarks/bench_rft3d.py); every term is finite off the mask
+        # LLVM's loop vectorizer out on AVX2 CPUs (scalar code, 4.5x slower in float64 and
+        # 10x in float32 on the 2-core AMD VM: benchmarks/bench_rft3d.py); every term is
+        # finite off the mask
         area = (one if on else zero) * G[6, i]
         load = xi * max(depth, zero) * area
         dyn = lamrho * vn * vn * area

@@ -1725,6 +1725,8 @@ def leg3d(medium: str | GranularMaterial = "poppy LP", *, shape: str = "flat",
     positive("length", length, "m")
     integer("n_theta", n_theta, 3)
     in_range("hip_height", hip_height, -length, length, "m")
+    if so_far:  # the checkpoint must be there before the scene is built
+        _checkpoint_file(checkpoint)
     cfg = config or SPHConfig(dx=dx)
     margin = 2.0 * cfg.h + cfg.dx
     reach = math.sqrt(max(length ** 2 - max(hip_height, 0.0) ** 2, 0.0))
@@ -1793,22 +1795,26 @@ def leg3d(medium: str | GranularMaterial = "poppy LP", *, shape: str = "flat",
             "resumed_from": s.resumed_from}
 
 
-def _checkpoint_forces(s: Solver3D, pose, damp, checkpoint) -> tuple[np.ndarray, int]:
-    """(forces per step, steps done) held in the checkpoint of this run (``run_key``)."""
+def _checkpoint_file(checkpoint) -> str:
+    """The run key in the terradyn checkpoint ``checkpoint`` (one-line error if there is none)."""
     from pathlib import Path
 
     from .solver import _checkpoint_key
 
     if checkpoint is None:
         raise InputError("checkpoint", "so_far needs the checkpoint file of the run")
-    ck = Path(checkpoint)
-    got = _checkpoint_key(ck)
+    got = _checkpoint_key(Path(checkpoint))
     if got is None:
-        raise InputError("checkpoint", f"{ck} is not a terradyn checkpoint (missing or unreadable)")
-    if got != run_key(s.scene, pose, damp):
-        raise InputError("checkpoint", f"{ck} is not a checkpoint of this run (another scene, "
+        raise InputError("checkpoint", f"{checkpoint} is not a terradyn checkpoint (missing or unreadable)")
+    return got
+
+
+def _checkpoint_forces(s: Solver3D, pose, damp, checkpoint) -> tuple[np.ndarray, int]:
+    """(forces per step, steps done) held in the checkpoint of this run (``run_key``)."""
+    if _checkpoint_file(checkpoint) != run_key(s.scene, pose, damp):
+        raise InputError("checkpoint", f"{checkpoint} is not a checkpoint of this run (another scene, "
                                        "resolution or motion): give the run's own arguments")
-    with np.load(ck, allow_pickle=False) as d:
+    with np.load(checkpoint, allow_pickle=False) as d:
         done = int(d["done"])
         f = np.zeros((len(damp), 3))
         f[:done] = d["forces"][:done]
