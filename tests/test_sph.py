@@ -351,6 +351,56 @@ def test_low_column_collapse_keeps_its_height_and_runs_out():
     assert r["p95_speed"] < 0.005  # the deposit came to rest
 
 
+def test_side_wall_friction_is_coulomb_against_the_velocity_and_stops_at_rest():
+    """The kick's side-wall friction (a quasi-2D channel of width W): a particle pressed on the
+    walls by -sigma_yy = p slows by dt 2 mu_w p / (rho W) along its velocity, a slower one
+    stops (never reverses), none acts in tension or without walls (bitwise the same kick)."""
+    from terradyn.sph.source import SOURCES
+
+    kick, mkpar = SOURCES["_kick_one"], SOURCES["_accel_par"]
+    W, mu, p, rho, dt = 0.1, 0.45, 800.0, 1600.0, 1e-4
+
+    def after(v, syy, wall_k):
+        par = mkpar(h=0.003, c0=30.0, av_alpha=0.1, av_beta=0.0, av_boundary=False, gx=0.0,
+                    gz=0.0, hip_x=0.0, hip_z=0.0, hip_vx=0.0, hip_vz=0.0, omega=0.0, half_t=0.0,
+                    gap=0.0, max_push=0.0, xmin=0.0, zmin=0.0, inv_cell=1.0, ncx=1, ncz=1,
+                    dt=dt, damping=0.0, vmax_allowed=30.0, wall_k=wall_k)
+        a = {k: np.zeros(1) for k in ("x", "z", "vx", "vz", "sxx", "szz")}
+        acc = (0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0)  # no pair forces, no leg contact
+        bad = kick(0, 0.0, 0.0, v[0], v[1], acc, np.ones(1), a["x"], a["z"], a["vx"], a["vz"],
+                   np.full(1, rho), a["sxx"], a["szz"], np.full(1, syy), np.zeros((1, 3)),
+                   np.zeros(1, np.int8), par)
+        assert bad == 0
+        return np.array([a["vx"][0], a["vz"][0]])
+
+    k = 2 * mu / W
+    dv = dt * k * p / rho
+    v = after((0.3, -0.4), -p, k)
+    assert np.hypot(*v) == pytest.approx(0.5 - dv, rel=1e-12)
+    assert v[0] / v[1] == pytest.approx(0.3 / -0.4, rel=1e-12)  # against the velocity only
+    assert np.all(after((0.3 * dv, 0.4 * dv), -p, k) == 0.0)  # slower than dv: at rest
+    assert np.all(after((0.0, 0.0), -p, k) == 0.0)
+    assert np.all(after((0.3, -0.4), 2 * p, k) == (0.3, -0.4))  # tension: no wall pressure
+    assert np.all(after((0.3, -0.4), -p, 0.0) == (0.3, -0.4))  # no walls
+
+
+def test_side_walls_hold_a_column_up_and_shorten_its_run_out():
+    """Column a = 1 (4 mm) in Lube et al. 2005's channel (walls 10 cm apart, grain-wall
+    friction = the medium's) against plane strain without walls: the walls keep more of its
+    height (docs/sph.md: 0.84 against 0.75) and shorten the run-out (1.59 against 1.94), and
+    the deposit comes to rest."""
+    free = validation.column_collapse(1.0, base=0.06, dx=4e-3)
+    walled = validation.column_collapse(1.0, base=0.06, dx=4e-3,
+                                        channel_width=validation.LUBE2005_CHANNEL)
+    assert walled["height"] > free["height"] + 0.05
+    assert walled["runout"] < free["runout"] - 0.2
+    assert walled["p95_speed"] < 1e-3
+    with pytest.raises(InputError, match="channel-width"):
+        SPHConfig(channel_width=0.0)
+    with pytest.raises(InputError, match="wall-friction"):
+        SPHConfig(channel_width=0.1, wall_friction=2.0)
+
+
 def test_static_height_bound_conserves_area_and_caps_at_the_full_height():
     """The deposit bound of a column (no slope steeper than phi): a plateau-and-flank deposit
     that keeps the full height exists while a <= 2 tan phi; above it the triangle of slope phi

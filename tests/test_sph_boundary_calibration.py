@@ -131,12 +131,18 @@ def test_validate_quick_scenes_compare_with_the_published_numbers(tmp_path):
     by = {c["quantity"]: c for c in res["checks"]}
     bed = by["d(-sigma_zz)/d(depth) / (rho g)"]
     assert bed["verdict"] == "pass" and abs(bed["ours"] - 1) < 0.05
-    col = by["H_f / H_i, a = 1"]
+    walls = "side walls 10 cm apart, grain-wall friction = phi"
+    col = by[f"H_f / H_i, a = 1 ({walls})"]
     assert col["reference"] == 1.0 and 0.3 < col["ours"] <= 1.05
-    phi = materials.MATERIALS["3 mm glass CP"].friction  # the static bound: 0.876 at 21 deg
+    phi = materials.MATERIALS["3 mm glass CP"].friction  # the static bound without walls
     assert f"at most {math.sqrt(2 * math.tan(phi)):.3g}" in col["source"]
-    ps = by["run-out (L_f - L_i)/L_i vs plane-strain continuum, a = 1"]
+    lube = by[f"run-out (L_f - L_i)/L_i, a = 1 ({walls})"]
+    assert lube["reference"] == pytest.approx(1.2) and "walls 10 cm apart" in lube["source"]
+    ps = by["run-out (L_f - L_i)/L_i vs plane-strain continuum, a = 1 (no walls)"]
     assert ps["reference"] == pytest.approx(2.28) and "Dunatunga" in ps["source"]
+    # the walls hold the column up: a taller deposit, a shorter run-out than in plane strain
+    assert col["ours"] > res["details"]["column_no_walls"][0]["height"] + 0.03
+    assert lube["ours"] < ps["ours"] - 0.1
     plate = by["alpha_z(0, pi/2), 3 mm glass CP"]
     assert plate["reference"] == pytest.approx(0.29) and "Table S3" in plate["source"]
     # at 4 mm (quick) the plate is below the measured slope at the angle of repose and near

@@ -50,10 +50,10 @@ _CHECKS = textwrap.dedent(r'''
     traj = td.Rotation(omega=5.0, hip_height=0.02, theta_start=-45 * DEG,
                        theta_end=-30 * DEG, n_theta=4).trajectory()
 
-    def scene(backend):
+    def scene(backend):  # side walls 2 cm apart: their friction is compared too
         return scenes.leg_scene(leg, traj, 0, bed_width=0.07, bed_depth=0.02,
                                 config=SPHConfig(dx=5e-3, settle_time=2e-4, wall_layers=2,
-                                                 backend=backend))
+                                                 backend=backend, channel_width=0.02))
 
     nsteps = int(sys.argv[1])
     res = {}
@@ -135,7 +135,8 @@ def _run_checks() -> dict:
 
 def test_gpu_backend_under_the_cuda_simulator():
     """One test (one slow subprocess, whatever pytest-xdist does with the tests): binning,
-    a leg intrusion against the CPU backend, state round trip, instability, lost grains,
+    a leg intrusion (in a channel with side-wall friction) against the CPU backend, state
+    round trip, instability, lost grains,
     run()."""
     sim = _run_checks()
     # the device's counting sort gives the CPU's cell lists exactly
@@ -182,7 +183,7 @@ _PTX = textwrap.dedent(r'''
     nb = neighbour_list(n, 1.3)
     grid = Grid(1.0, 1.0, 1.0, 1.0, 3, 4)
     par_s = StrainPar(*grid, *(1.0,) * 8, True)
-    par_a = SOURCES["_accel_par"](*(1.0,) * 4, True, *(1.0,) * 13, 3, 4, 1.0, 1.0, 1.0)
+    par_a = SOURCES["_accel_par"](*(1.0,) * 4, True, *(1.0,) * 13, 3, 4, 1.0, 1.0, 1.0, 0.0)
     args = {
         "_k_count": (S, 1.0, 1.0, 1.0, 3, 4, i32(nc), i32(n), i32(n)),
         "_k_scan_blocks": (i32(nc), i32(nc), i32(4), i32(64), 1),

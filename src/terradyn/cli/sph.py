@@ -12,7 +12,7 @@ import typer
 
 from . import options as O, sub_app
 
-from ..errors import InputError, integer, positive
+from ..errors import InputError, in_range, integer, positive
 
 Backend = Enum("Backend", {b: b for b in ("cpu", "gpu", "auto")}, type=str)
 
@@ -31,6 +31,8 @@ _DENSITY = typer.Option(None, "--density-kg-m3", help="Your own medium: bulk den
 _FRICTION = typer.Option(None, "--friction-deg", help="Friction angle, deg (default: the medium's plate-test calibration shipped with terradyn where there is one, else its angle of repose, Li 2013 Table S1; docs/sph.md).")
 _DILATANCY = typer.Option("none", "--dilatancy", help="Flow rule: none (psi = 0) or bolton (a CP medium dilates until its LP packing: psi = (phi_CP - phi_LP) / 0.8, Bolton 1986; poppy CP, 0.3 mm glass CP).")
 _DP_MATCH = typer.Option("plane-strain", "--dp-match", help="Drucker-Prager cone matched to the friction angle: plane-strain (alpha = sin(phi)/3, mobilises phi in plane strain) or bui2008 (the former cone, mobilises less; a named medium then takes its repose angle unless --friction-deg is given). docs/sph.md.")
+_CHANNEL = typer.Option(None, "--channel-width-cm", help="Side walls of a quasi-2D channel this far apart, cm, with Coulomb friction pressed by the out-of-plane stress (default: none, plane strain; Lube et al. 2005's channel: 10).")
+_WALL_FRICTION = typer.Option(None, "--wall-friction-deg", help="Grain-wall friction angle of the side walls, deg, in [0, 60] (default: the medium's friction angle; needs --channel-width-cm).")
 _BOUNDARY = typer.Option("resolved", "--boundary", help="Leg boundary: resolved (sides kept apart, contact at dx/4) or guard (the model before issue 17).")
 
 
@@ -131,6 +133,8 @@ def run_cmd(
     quick: bool = _QUICK,
     dx_mm: Optional[float] = _DX,
     cfl: float = typer.Option(0.2, help="Courant number of the time step."),
+    channel_width_cm: Optional[float] = _CHANNEL,
+    wall_friction_deg: Optional[float] = _WALL_FRICTION,
     lowpass_hz: Optional[float] = typer.Option(None, help="Zero-phase Butterworth low-pass of the force record, Hz (default: none)."),
     checkpoint: Optional[Path] = typer.Option(None, help="Checkpoint file: written every minute; a rerun resumes from it."),
     snapshots: int = typer.Option(0, help="Number of particle snapshots to keep (evenly over the motion; those in the simulated contact part)."),
@@ -170,7 +174,9 @@ def run_cmd(
     opts = model.check_options(dict(
         quick=quick, dx_mm=dx_mm, cfl=cfl, lowpass_hz=lowpass_hz, backend=Backend(backend).value,
         boundary=boundary, friction_deg=friction_deg, density_kg_m3=density_kg_m3,
-        dilatancy=dilatancy, dp_match=dp_match, thickness_cm=positive("thickness-cm", thickness_cm, "cm")))
+        dilatancy=dilatancy, dp_match=dp_match, thickness_cm=positive("thickness-cm", thickness_cm, "cm"),
+        **{k: v for k, v in (("channel_width_cm", channel_width_cm),
+                             ("wall_friction_deg", wall_friction_deg)) if v is not None}))
     sph_model.config(opts)
     sph_model.material(medium, opts)
     if compare_rft and density_kg_m3 is not None:
@@ -228,18 +234,32 @@ def bed_cmd(medium: str = _MEDIUM, quick: bool = _QUICK, dx_mm: Optional[float] 
 @sph_app.command("column")
 def column_cmd(aspect: list[float] = typer.Option([0.5, 1.0, 2.0], help="Aspect ratios H/L (repeat)."),
                medium: str = _MEDIUM, quick: bool = _QUICK, dx_mm: Optional[float] = _DX,
+               channel_width_cm: Optional[float] = _CHANNEL,
+               wall_friction_deg: Optional[float] = _WALL_FRICTION,
                plot: Optional[Path] = typer.Option(None, help="Figure: deposits and run-out vs Lube et al. 2005.")):
     """Scene 2: collapse of 2D granular columns; run-out and final height vs Lube et al. (2005)."""
+    import math
+
     from .. import io
     from ..sph import plots, validation
 
     dx = _dx(dx_mm) or (4e-3 if quick else 2e-3)
+    for a in aspect:
+        positive("aspect", a)
+    if channel_width_cm is not None:
+        positive("channel-width-cm", channel_width_cm, "cm")
+    if wall_friction_deg is not None:
+        if channel_width_cm is None:
+            raise InputError("wall-friction-deg", "has no effect without --channel-width-cm")
+        in_range("wall-friction-deg", wall_friction_deg, 0.0, 60.0, "deg")
     io.check_plot(plot)
     base = 0.06 if quick else 0.1
+    walls = dict(channel_width=channel_width_cm * 1e-2 if channel_width_cm is not None else None,
+                 wall_friction=math.radians(wall_friction_deg) if wall_friction_deg is not None else None)
     rows = []
     with _progress("columns") as cb:
         for k, a in enumerate(aspect):
-            rows.append(validation.column_collapse(a, medium, base=base, dx=dx))
+            rows.append(validation.column_collapse(a, medium, base=base, dx=dx, **walls))
             cb(k + 1, len(aspect))
     typer.echo(json.dumps([{k: v for k, v in r.items() if isinstance(v, float)} for r in rows]))
     if plot:

@@ -4,6 +4,8 @@ This file imports nothing heavy at load: Numba and the solver load when a run st
 """
 from __future__ import annotations
 
+import math
+
 from ..errors import InputError
 from ..units import CM
 from . import Model, Option
@@ -29,6 +31,12 @@ OPTIONS = (
     Option("friction_deg", float, None, "deg", 0, 80, lo_open=True, help="Friction angle (default: the medium's shipped plate-test calibration, else its repose angle)."),
     Option("density_kg_m3", float, None, "kg/m^3", 0, None, lo_open=True, help="Your own medium's bulk density (needs friction_deg)."),
     Option("backend", str, None, choices=("cpu", "gpu", "auto"), help="Kernels (default cpu)."),
+    Option("channel_width_cm", float, None, "cm", 0, None, lo_open=True,
+           help="Side walls of a quasi-2D channel this far apart, with Coulomb friction (default: "
+                "none, plane strain)."),
+    Option("wall_friction_deg", float, None, "deg", 0, 60,
+           help="Grain-wall friction angle of the side walls (default: the medium's friction "
+                "angle; needs channel_width_cm)."),
     Option("dilatancy", str, None, choices=("none", "bolton"),
            help="Flow rule (default none; bolton: a CP medium dilates until its LP packing, Bolton 1986)."),
     Option("dp_match", str, None, choices=("plane-strain", "bui2008"),
@@ -49,10 +57,18 @@ def config(opts: dict, field=lambda k: k.replace("_", "-")):
     quick = bool(opts.get("quick", False))
     dx = opts["dx_mm"] * 1e-3 if "dx_mm" in opts else (QUICK_DX if quick else FULL_DX)
     kw = {c: opts[k] for k, c in _CFG.items() if k in opts}
+    if "wall_friction_deg" in opts and "channel_width_cm" not in opts:
+        raise InputError(field("wall_friction_deg"), f"has no effect without "
+                         f"{field('channel_width_cm')} (the side walls it is the friction of)")
+    if "channel_width_cm" in opts:
+        kw["channel_width"] = opts["channel_width_cm"] * CM
+    if "wall_friction_deg" in opts:
+        kw["wall_friction"] = math.radians(opts["wall_friction_deg"])
     try:
         cfg = SPHConfig(dx=dx, **kw)
     except InputError as e:
-        f = {"dx": "dx_mm", "settle-time": "settle_time_s", "lowpass": "lowpass_hz"}.get(
+        f = {"dx": "dx_mm", "settle-time": "settle_time_s", "lowpass": "lowpass_hz",
+             "channel-width": "channel_width_cm", "wall-friction": "wall_friction_deg"}.get(
             e.field, e.field.replace("-", "_"))
         raise InputError(field(f), str(e).split(": ", 1)[-1]) from None
     if "backend" in opts:
@@ -133,7 +149,7 @@ def _resolve(opts: dict) -> dict:
         out["settle_time_s"] = _canon(cfg.settle_time)
     if cfg.lowpass_hz is not None:
         out["lowpass_hz"] = _canon(cfg.lowpass_hz)
-    for k in ("bed_width_cm", "bed_depth_cm"):
+    for k in ("bed_width_cm", "bed_depth_cm", "channel_width_cm", "wall_friction_deg"):
         if k in o:
             out[k] = o[k]
     return out

@@ -272,8 +272,9 @@ def strain_stress(srt, srtk, cell_index, h, xmin, zmin, inv_cell, ncx, ncz, cell
 @numba.njit(parallel=True, fastmath=_FM, cache=True)  # _FM: the NaN checks must stay
 def accelerations_kick(srt, srtk, cell_index, mass, h, c0, av_alpha, av_beta, av_boundary, gx,
                        gz, hip_x, hip_z, hip_vx, hip_vz, omega, half_t, gap, max_push, xmin, zmin,
-                       inv_cell, ncx, ncz, cell_start, x, z, vx, vz, rho, sxx, szz, dt, damping,
-                       vmax_allowed, fleg, bad, nbj, nbw, nbn, buf, cont, bounds, nchunk):
+                       inv_cell, ncx, ncz, cell_start, x, z, vx, vz, rho, sxx, szz, syy, dt,
+                       damping, vmax_allowed, wall_k, fleg, bad, nbj, nbw, nbn, buf, cont, bounds,
+                       nchunk):
     """Second pass (stresses): acceleration of every granular particle, the force it exerts on
     the leg (fleg[i] = (Fx, Fz, torque about (hip_x, hip_z)), per unit depth), and its kick and
     drift: v += dt a (optionally damped), x += dt v (symplectic Euler). The pair sums read
@@ -311,7 +312,7 @@ def accelerations_kick(srt, srtk, cell_index, mass, h, c0, av_alpha, av_beta, av
     GRD = srtk[SRTK_GRD]
     par = _accel_par(h, c0, av_alpha, av_beta, av_boundary, gx, gz, hip_x, hip_z, hip_vx, hip_vz,
                      omega, half_t, gap, max_push, xmin, zmin, inv_cell, ncx, ncz, dt, damping,
-                     vmax_allowed)
+                     vmax_allowed, wall_k)
     for phase in range(2):
         for c in prange((nchunk + 1 - phase) // 2):
             cc = 2 * c + phase
@@ -328,7 +329,7 @@ def accelerations_kick(srt, srtk, cell_index, mass, h, c0, av_alpha, av_beta, av
         buf[k, BUF_AX] = 0.0
         buf[k, BUF_AZ] = 0.0
         nbad += _kick_one(i, X[k], Z[k], VX[k], VZ[k], acc, mass, x, z, vx, vz, rho, sxx, szz,
-                          fleg, bad, par)
+                          syy, fleg, bad, par)
     return nbad
 
 
@@ -370,13 +371,13 @@ def leg_sides(x, z, kind, dcl, cl, hip_x, hip_z, ang, box, reach2):
 #: Scalars of :func:`cpu_steps` (float array ``fp``), by index.
 FP = ("h", "xmin", "zmin", "inv_cell", "gx", "gz", "dt", "shear_mod", "bulk_mod", "alpha_phi",
       "k_c", "rho_min", "rho_max", "c0", "av_alpha", "av_beta", "half_t", "gap", "max_push",
-      "vmax_allowed", "side_reach2", "alpha_psi", "rho_crit")
+      "vmax_allowed", "side_reach2", "alpha_psi", "rho_crit", "wall_k")
 #: Integers of :func:`cpu_steps` (int64 array ``ip``): grid size, flags, and two counters it
 #: updates: the pair chunks and the list builds so far.
 IP = ("ncx", "ncz", "noslip", "av_boundary", "has_leg", "nchunk", "builds", "sides")
 (FP_H, FP_XMIN, FP_ZMIN, FP_INV_CELL, FP_GX, FP_GZ, FP_DT, FP_SHEAR_MOD, FP_BULK_MOD,
  FP_ALPHA_PHI, FP_K_C, FP_RHO_MIN, FP_RHO_MAX, FP_C0, FP_AV_ALPHA, FP_AV_BETA, FP_HALF_T, FP_GAP,
- FP_MAX_PUSH, FP_VMAX_ALLOWED, FP_SIDE_REACH2, FP_ALPHA_PSI, FP_RHO_CRIT) = range(len(FP))
+ FP_MAX_PUSH, FP_VMAX_ALLOWED, FP_SIDE_REACH2, FP_ALPHA_PSI, FP_RHO_CRIT, FP_WALL_K) = range(len(FP))
 (IP_NCX, IP_NCZ, IP_NOSLIP, IP_AV_BOUNDARY, IP_HAS_LEG, IP_NCHUNK, IP_BUILDS,
  IP_SIDES) = range(len(IP))
 
@@ -416,6 +417,7 @@ def cpu_steps(poses, dampings, forces, x, z, vx, vz, rho, sxx, szz, sxz, syy, gv
     max_push = fp[FP_MAX_PUSH]
     vmax_allowed = fp[FP_VMAX_ALLOWED]
     side_reach2 = fp[FP_SIDE_REACH2]
+    wall_k = fp[FP_WALL_K]
     sides = ip[IP_SIDES] != 0
     ncx = ip[IP_NCX]
     ncz = ip[IP_NCZ]
@@ -466,8 +468,8 @@ def cpu_steps(poses, dampings, forces, x, z, vx, vz, rho, sxx, szz, sxz, syy, gv
         nbad = accelerations_kick(
             srt, srtk, cell_index, mass, h, c0, av_alpha, av_beta, av_boundary, gx, gz, hip_x,
             hip_z, hip_vx, hip_vz, omega, half_t, gap, max_push, xmin, zmin, inv_cell, ncx, ncz,
-            cell_start, x, z, vx, vz, rho, sxx, szz, dt, dampings[s], vmax_allowed, fleg, bad,
-            nbj, nbw, nbn, buf, cont, bounds, nchunk)
+            cell_start, x, z, vx, vz, rho, sxx, szz, syy, dt, dampings[s], vmax_allowed, wall_k,
+            fleg, bad, nbj, nbw, nbn, buf, cont, bounds, nchunk)
         if nbad:
             return s, nbad
         if has_leg:
@@ -512,7 +514,7 @@ class CPUBackend:
                    rho_max=1.1 * mat.density, c0=s.c0, av_alpha=cfg.av_alpha,
                    av_beta=cfg.av_beta, half_t=s.half_t, gap=s.gap, max_push=0.1 * cfg.dx,
                    vmax_allowed=s.vmax_allowed, side_reach2=s.side_reach ** 2,
-                   alpha_psi=mat.alpha_psi, rho_crit=mat.dilation_limit)
+                   alpha_psi=mat.alpha_psi, rho_crit=mat.dilation_limit, wall_k=s.wall_k)
         self.fp = np.array([val[k] for k in FP], dtype=np.float64)
         ival = dict(ncx=s.ncx, ncz=s.ncz, noslip=int(bool(cfg.noslip)),
                     av_boundary=int(bool(cfg.av_boundary)), has_leg=int(leg is not None),

@@ -326,7 +326,7 @@ def _k_accel(srt, srtk, cell_index, cell_start, S, fleg, bad, nbj, nbw, nbn, par
                              srt[SRT_NOX], srt[SRT_NOZ], srtk[SRTK_KIND], srtk[SRTK_DCL],
                              srtk[SRTK_GRD], cell_index,
                              cell_start, S[MASS], S[X], S[Z], S[VX], S[VZ], S[RHO], S[SXX],
-                             S[SZZ], fleg, bad, (nbj, nbw, nbn), par)
+                             S[SZZ], S[SYY], fleg, bad, (nbj, nbw, nbn), par)
         if nb != 0:
             cuda.atomic.add(acc, 3, 1.0)
         if srtk[SRTK_KIND, k] == SOIL:
@@ -512,7 +512,7 @@ class GPUBackend:
             h, float(s.c0), float(cfg.av_alpha), float(cfg.av_beta), bool(cfg.av_boundary), gx,
             gz, hip_x, hip_z, hip_vx, hip_vz, omega, float(s.half_t), float(s.gap),
             float(0.1 * cfg.dx), xmin, zmin, inv_cell, ncx, ncz, dt, float(damping),
-            float(s.vmax_allowed))
+            float(s.vmax_allowed), float(s.wall_k))
         _k_accel[nb, TPB](self.srt, self.srtk, b.cell_index, b.cell_start, self.S, self.fleg,
                           self.bad, *self.nb[2:], par, self.acc)
         a = self.acc.copy_to_host()

@@ -68,10 +68,11 @@ StrainPar = namedtuple("StrainPar", "h xmin zmin inv_cell ncx ncz dt shear_mod b
 #: Pass 2 (:func:`_accel_kick_one`, :func:`_kick_one`), made by :func:`_accel_par`: grid,
 #: sound speed, artificial viscosity, gravity, the hip's position and velocity and the leg's
 #: clockwise angular speed, the contact guard (leg half thickness, gap, largest push per
-#: step), time step, damping factor 1 / (1 + damping dt), the speed limit of stability.
+#: step), time step, damping factor 1 / (1 + damping dt), the speed limit of stability, and
+#: the side-wall friction factor wall_k = 2 mu_w / W (1/m; 0: plane strain without walls).
 AccelPar = namedtuple("AccelPar", "h xmin zmin inv_cell ncx ncz c0 av_alpha av_beta av_boundary "
                                   "gx gz hip_x hip_z hip_vx hip_vz omega half_t gap max_push dt "
-                                  "fdamp vmax_allowed")
+                                  "fdamp vmax_allowed wall_k")
 #: One granular particle's scalars that its pair terms read (:func:`_accel_pp`): h, h^2, the
 #: viscosity and guard constants of :class:`AccelPar`, its position, velocity, density,
 #: sigma / rho^2 and mass.
@@ -443,18 +444,31 @@ def _accel_pp(k, X, Z, VX, VZ, PXX, PZZ, PXZ, RHO, mi, par):
 
 
 @_source
-def _kick_one(i, xi, zi, vxi, vzi, acc, mass, x, z, vx, vz, rho, sxx, szz, fleg, bad, par):
+def _kick_one(i, xi, zi, vxi, vzi, acc, mass, x, z, vx, vz, rho, sxx, szz, syy, fleg, bad,
+              par):
     """Kick, contact and drift of granular particle ``i`` (at xi, zi with velocity vxi, vzi
     at the start of the step) from its summed pair terms acc = (a_x, a_z, fx, fz, torque,
     dmin, pnx, pnz) (see :func:`_accel_pair`); writes its velocity, position and force on
     the leg; par: the :class:`AccelPar` of the step. Returns 1 if it went non-finite or too
-    fast, else 0."""
+    fast, else 0.
+
+    Side walls (par.wall_k > 0, a quasi-2D channel of width W): Coulomb friction of the two
+    walls, each pressed by the out-of-plane stress -sigma_yy, averaged over the width: a
+    deceleration of at most wall_k (-sigma_yy) / rho = 2 mu_w (-sigma_yy) / (rho W) against
+    the velocity, applied to the kicked velocity and never past rest (so it holds a particle
+    that the other forces would set moving no faster, as static friction does)."""
     gx, gz, dt, fdamp, vmax_allowed = par.gx, par.gz, par.dt, par.fdamp, par.vmax_allowed
     hip_x, hip_z, hip_vx, hip_vz, omega = par.hip_x, par.hip_z, par.hip_vx, par.hip_vz, par.omega
     gap, max_push = par.gap, par.max_push
     a_x, a_z, fx, fz, tq, dmin, pnx, pnz = acc
     nvx = (vxi + dt * (a_x + gx)) * fdamp
     nvz = (vzi + dt * (a_z + gz)) * fdamp
+    if par.wall_k > 0.0 and syy[i] < 0.0:
+        sp = math.sqrt(nvx * nvx + nvz * nvz)
+        dv = dt * par.wall_k * (-syy[i]) / rho[i]
+        keep = 1.0 - dv / sp if sp > dv else 0.0
+        nvx *= keep
+        nvz *= keep
     if pnx != 0.0 or pnz != 0.0:
         rx = xi - hip_x
         rz = zi - hip_z
@@ -486,8 +500,8 @@ def _kick_one(i, xi, zi, vxi, vzi, acc, mass, x, z, vx, vz, rho, sxx, szz, fleg,
 
 @_source
 def _accel_kick_one(k, X, Z, VX, VZ, PXX, PZZ, PXZ, VOL, RHO, NOX, NOZ, KND, DCL, GRD,
-                    cell_index, cell_start, mass, x, z, vx, vz, rho, sxx, szz, fleg, bad, nb,
-                    par):
+                    cell_index, cell_start, mass, x, z, vx, vz, rho, sxx, szz, syy, fleg, bad,
+                    nb, par):
     """Column ``k`` (cell order) of the GPU's pass 2: acceleration, force on the leg, contact
     guard, kick and drift of its particle if granular, every neighbour visited from this
     side (the CPU's pass 2, :func:`accelerations_kick`, visits each granular pair once).
@@ -519,14 +533,14 @@ def _accel_kick_one(k, X, Z, VX, VZ, PXX, PZZ, PXZ, VOL, RHO, NOX, NOZ, KND, DCL
                 if fdw != 0.0:
                     acc = _accel_pair(j, fdw, X, Z, VX, VZ, PXX, PZZ, PXZ, VOL, RHO, NOX, NOZ,
                                       KND, DCL, GRD, pp, acc)
-    return _kick_one(i, xi, zi, VX[k], VZ[k], acc, mass, x, z, vx, vz, rho, sxx, szz, fleg,
-                     bad, par)
+    return _kick_one(i, xi, zi, VX[k], VZ[k], acc, mass, x, z, vx, vz, rho, sxx, szz, syy,
+                     fleg, bad, par)
 
 
 @_source
 def _accel_par(h, c0, av_alpha, av_beta, av_boundary, gx, gz, hip_x, hip_z, hip_vx, hip_vz,
                omega, half_t, gap, max_push, xmin, zmin, inv_cell, ncx, ncz, dt, damping,
-               vmax_allowed):
+               vmax_allowed, wall_k):
     """The scalars of :func:`_accel_kick_one` as one :class:`AccelPar` (the damping rate
     becomes the factor fdamp = 1 / (1 + damping dt))."""
     fdamp = 1.0 / (1.0 + damping * dt)
@@ -534,7 +548,7 @@ def _accel_par(h, c0, av_alpha, av_beta, av_boundary, gx, gz, hip_x, hip_z, hip_
                     av_alpha=av_alpha, av_beta=av_beta, av_boundary=av_boundary, gx=gx, gz=gz,
                     hip_x=hip_x, hip_z=hip_z, hip_vx=hip_vx, hip_vz=hip_vz, omega=omega,
                     half_t=half_t, gap=gap, max_push=max_push, dt=dt, fdamp=fdamp,
-                    vmax_allowed=vmax_allowed)
+                    vmax_allowed=vmax_allowed, wall_k=wall_k)
 
 
 @_source

@@ -1239,6 +1239,10 @@ class Solver3D:
         self.resumed_from = None
         cfg = sc.config
         mat = sc.material
+        if cfg.channel_width is not None or cfg.wall_friction is not None:
+            raise InputError("channel-width", "is a setting of the 2D model (its side walls "
+                             "are modelled as friction); a 3D scene has none, got "
+                             f"{cfg.channel_width!r} m")
         nr = len(sc)
         self.nr = nr
         self.h = cfg.h
@@ -1490,10 +1494,9 @@ def run_key(scene: Scene3D, pose, damp) -> str:
     motion): a checkpoint resumes only the run that wrote it."""
     import hashlib
     import json
-    from dataclasses import asdict
 
     h = hashlib.sha256()
-    cfg = {k: v for k, v in asdict(scene.config).items() if k != "backend"}
+    cfg = scene.config.run_items()
     h.update(json.dumps({"scene": "3d", "config": cfg, "material": scene.material.describe(),
                          "meta": scene.meta}, sort_keys=True, default=str).encode())
     for a in (scene.pos, scene.kind, scene.mass, scene.sig, scene.nz, scene.dcl, scene.grd,

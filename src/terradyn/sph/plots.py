@@ -34,13 +34,22 @@ def columns(rows: list[dict], path=None):
 
     with plt.rc_context(STYLE):
         fig, (a1, a2) = plt.subplots(1, 2, figsize=(7.0, 2.8))
-        for r in rows:
+        # the tallest column first, so that the smaller deposits are drawn over it
+        order = sorted(range(len(rows)), key=lambda k: -rows[k]["aspect"])
+        handles = {}
+        for k in order:
+            r = rows[k]
             base = r["base"]
-            a1.plot(r["x"] / base, r["z"] / base, ".", ms=1.5, label=f"a = {r['aspect']:g}")
+            handles[k], = a1.plot(r["x"] / base, r["z"] / base, ".", ms=1.5, color=f"C{k}",
+                                  label=f"a = {r['aspect']:g}")
+        walls = rows[0].get("channel_width") if rows else None
+        if walls:
+            a1.set_title(f"deposits, side walls {walls * 100:g} cm apart", fontsize="medium", loc="left")
         a1.set_xlabel(r"$x / L_i$")
         a1.set_ylabel(r"$z / L_i$")
         a1.set_aspect("equal")
-        a1.legend(frameon=False, markerscale=6)
+        a1.legend([handles[k] for k in range(len(rows))], [f"a = {r['aspect']:g}" for r in rows],
+                  frameon=False, markerscale=6, loc="upper left", bbox_to_anchor=(1.0, 1.0))
         aa = np.linspace(0.2, max(r["aspect"] for r in rows) * 1.2, 100)
         lr, lh = lube2005(aa)
         a2.plot(aa, lr, "-", color="C0", label="run-out, Lube 2005")

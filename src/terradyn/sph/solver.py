@@ -21,7 +21,7 @@ import math
 import os
 import uuid
 import zipfile
-from dataclasses import asdict, dataclass
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Callable
 
@@ -143,6 +143,12 @@ class Solver:
         vmax = self._max_leg_speed()
         self.dt = cfg.cfl * self.h / (self.c0 + vmax)
         self.vmax_allowed = self.c0  # a granular particle faster than sound: unstable
+        # side walls (a quasi-2D channel): 2 mu_w / W, 0 without them
+        if cfg.channel_width is None:
+            self.wall_k = 0.0
+        else:
+            mu_w = math.tan(cfg.wall_friction if cfg.wall_friction is not None else mat.friction)
+            self.wall_k = 2.0 * mu_w / cfg.channel_width
         self.t = 0.0
         self.step_count = 0
         self._grid()
@@ -320,7 +326,7 @@ def scene_key(scene: Scene, extra: dict | None = None) -> str:
     """A hash of everything that defines a run (for checkpoints)."""
     h = hashlib.sha256()
     # the backend does not change the run: a checkpoint of one resumes on the other
-    cfg = {k: v for k, v in asdict(scene.config).items() if k != "backend"}
+    cfg = scene.config.run_items()
     h.update(json.dumps({"config": cfg, "material": scene.material.describe(),
                          "meta": scene.meta, "extra": extra or {}}, sort_keys=True,
                         default=str).encode())

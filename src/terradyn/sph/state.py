@@ -4,7 +4,8 @@ every other module (scenes, physics, backends, solver) can import it.
 """
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+import math
+from dataclasses import asdict, dataclass, field
 
 import numpy as np
 
@@ -54,7 +55,11 @@ class SPHConfig:
     transits); lowpass_hz: optional zero-phase Butterworth low-pass of the recorded forces
     (None: raw); threads: CPU threads (None: Numba's default); backend: "cpu" (Numba,
     multi-threaded), "gpu" (Numba CUDA, :mod:`terradyn.sph.gpu`; an NVIDIA GPU and the
-    ``gpu`` extra are needed) or "auto" (the GPU when one is usable, else the CPU)."""
+    ``gpu`` extra are needed) or "auto" (the GPU when one is usable, else the CPU);
+    channel_width: side walls of a quasi-2D channel this far apart (m; None: plane strain
+    without walls), each with Coulomb friction wall_friction (rad; None: the material's
+    friction angle, walls as rough as the medium) pressed by the out-of-plane stress
+    (:func:`terradyn.sph.physics._kick_one`)."""
 
     dx: float = 2.5e-3
     hdx: float = 1.3
@@ -70,6 +75,8 @@ class SPHConfig:
     backend: str = "cpu"
     boundary: str = "resolved"
     contact_gap: float | None = None
+    channel_width: float | None = None
+    wall_friction: float | None = None
 
     def __post_init__(self):
         positive("dx", self.dx, "m")
@@ -87,6 +94,10 @@ class SPHConfig:
                                          f"got {self.boundary!r}")
         if self.contact_gap is not None:
             in_range("contact-gap", self.contact_gap, 0.0, 1.0, "dx")
+        if self.channel_width is not None:
+            positive("channel-width", self.channel_width, "m")
+        if self.wall_friction is not None:
+            in_range("wall-friction", self.wall_friction, 0.0, math.radians(60.0), "rad")
         if self.backend not in BACKENDS:
             raise InputError("backend", f"must be one of {', '.join(map(repr, BACKENDS))}, "
                                         f"got {self.backend!r}")
@@ -94,6 +105,17 @@ class SPHConfig:
     @property
     def h(self) -> float:
         return self.hdx * self.dx
+
+    def run_items(self) -> dict:
+        """The settings that define a run, for checkpoint keys: all but the backend (a
+        checkpoint of one resumes on the other), and the side walls only where set (so
+        checkpoints written before they existed still resume)."""
+        d = asdict(self)
+        d.pop("backend")
+        for k in ("channel_width", "wall_friction"):
+            if d[k] is None:
+                d.pop(k)
+        return d
 
 
 @dataclass

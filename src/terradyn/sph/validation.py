@@ -80,6 +80,11 @@ def lube2005(aspect) -> tuple[np.ndarray, np.ndarray]:
 #: in a channel 10 cm wide.
 PLANE_STRAIN_MPM_RUNOUT = 2.28
 
+#: Distance between the side walls of Lube et al. 2005's quasi-2D channel (m; quoted
+#: second-hand, shared/spec/sph-fidelity-notes.md section 4): the column scene's walls when it
+#: is compared with their fits (``column_collapse(..., channel_width=LUBE2005_CHANNEL)``).
+LUBE2005_CHANNEL = 0.10
+
 
 def static_height_bound(aspect: float, friction: float) -> float:
     """Largest final height H_f / H_i a column of aspect a = H_i / L_i can keep if no slope of
@@ -92,12 +97,18 @@ def static_height_bound(aspect: float, friction: float) -> float:
 
 
 def column_collapse(aspect: float, medium="3 mm glass CP", *, base=0.06, dx=4e-3,
-                    duration: float | None = None, snapshots: int = 0) -> dict:
+                    duration: float | None = None, snapshots: int = 0,
+                    channel_width: float | None = None,
+                    wall_friction: float | None = None) -> dict:
     """Collapse a 2D column of width ``base`` and height aspect x base against a wall; returns
-    the normalised run-out (L_f - L_i)/L_i and final height H_f/L_i with Lube's values."""
+    the normalised run-out (L_f - L_i)/L_i and final height H_f/L_i with Lube's values.
+    ``channel_width`` (m): the side walls of a quasi-2D channel (Lube et al. 2005's are 10 cm
+    apart), with Coulomb friction ``wall_friction`` (rad; None: the medium's friction angle);
+    None: plane strain without walls."""
     positive("aspect", aspect)
     mat = _material(medium)
-    cfg = SPHConfig(dx=dx, settle_time=0.0)
+    cfg = SPHConfig(dx=dx, settle_time=0.0, channel_width=channel_width,
+                    wall_friction=wall_friction)
     sc = column_scene(aspect, base=base, medium=mat, config=cfg)
     base = sc.meta["base_m"]  # snapped to whole particle spacings
     H = aspect * base
@@ -115,6 +126,7 @@ def column_collapse(aspect: float, medium="3 mm glass CP", *, base=0.06, dx=4e-3
     top = float(z[x < 2 * dx].max()) + 0.5 * dx if (x < 2 * dx).any() else float(z.max() + 0.5 * dx)
     lr, lh = lube2005(aspect)
     return {"aspect": aspect, "base": base, "runout": (front - base) / base, "height": top / base,
+            "channel_width": channel_width,
             "runout_lube": float(lr), "height_lube": float(lh),
             "runout_plane_strain_mpm": PLANE_STRAIN_MPM_RUNOUT * aspect if aspect <= 1.0 else None,
             "height_bound": static_height_bound(aspect, mat.friction),
