@@ -42,7 +42,7 @@ def _simple_shear_friction(mat, p0=-1000.0, rate=1.0, dt=1e-5, steps=20000):
         rho, sxx, szz, sxz, syy = physics.dp_update(
             rho, 0.0, 0.0, rate, 0.0, 0.0, sxx, szz, sxz, syy, dt, mat.shear_modulus,
             mat.bulk_modulus, mat.alpha_phi, mat.k_c, 0.5 * mat.density, 2 * mat.density,
-            0.0, 0.0)
+            0.0, 0.0, *mat.rate_constants)
     p = -0.5 * (sxx + szz)
     return math.degrees(math.asin(math.hypot(0.5 * (sxx - szz), sxz) / p)), syy + p
 
@@ -60,6 +60,38 @@ def test_plane_strain_flow_mobilises_the_materials_friction_angle(medium):
     phi_b, _ = _simple_shear_friction(b)
     assert phi_b == pytest.approx(b.mobilised_friction / DEG, abs=1e-6)
     assert phi_b < m.friction / DEG - 0.4  # 20.5 / 33.8 / 42.4 deg for 21 / 36 / 47
+
+
+@pytest.mark.parametrize("rate,p0", [(100.0, -1000.0), (30.0, -4000.0), (1e-3, -1000.0)])
+def test_mu_i_simple_shear_flows_at_jop_friction(rate, p0):
+    """mu(I): a particle sheared steadily at gamma_dot under pressure P flows at
+    atan(mu_s + (mu_2 - mu_s) / (1 + I_0 / I)), I = gamma_dot d / sqrt(P / rho_s) (Jop et al.
+    2006, analytic); a quasi-static rate (I ~ 5e-6) keeps the static friction angle."""
+    from terradyn.sph.materials import JOP2006_I0, JOP2006_MU_RISE
+    m = from_medium("3 mm glass CP", rheology="mu-i")
+    assert m.friction == MATERIALS["3 mm glass CP"].friction  # the calibration is kept
+    inum = rate * m.grain_diameter / math.sqrt(-p0 / m.grain_density)
+    mu = math.tan(m.friction) + JOP2006_MU_RISE / (1 + JOP2006_I0 / inum)
+    phi_mob, _ = _simple_shear_friction(m, p0=p0, rate=rate, dt=2.0 / rate / 2e4,
+                                        steps=20000)
+    assert phi_mob == pytest.approx(math.degrees(math.atan(mu)), abs=1e-4)
+    if rate < 1:
+        assert phi_mob == pytest.approx(m.friction / DEG, abs=0.01)
+    else:
+        assert phi_mob > m.friction / DEG + 2.0
+
+
+def test_mu_i_material_checks():
+    with pytest.raises(InputError, match="grain_diameter"):
+        GranularMaterial("x", 1500, 1e6, 0.3, 0.3, mu_rise=0.26)
+    with pytest.raises(InputError, match="dp_match"):
+        GranularMaterial("x", 1500, 1e6, 0.3, 0.3, mu_rise=0.26, grain_diameter=1e-3,
+                         grain_density=2500, dp_match="bui2008")
+    with pytest.raises(InputError, match="rheology"):
+        from_medium("poppy LP", rheology="viscous")
+    m = from_medium("poppy LP", rheology="mu-i")
+    assert m.describe()["rheology"] == "mu-i" and "Jop" in m.sources["rheology"]
+    assert MATERIALS["poppy LP"].describe()["rheology"] == "constant"
 
 
 def test_material_rejects_bad_input():
@@ -399,6 +431,27 @@ def test_side_walls_hold_a_column_up_and_shorten_its_run_out():
         SPHConfig(channel_width=0.0)
     with pytest.raises(InputError, match="wall-friction"):
         SPHConfig(channel_width=0.1, wall_friction=2.0)
+
+
+def test_mu_i_column_runs_out_less_and_comes_to_rest():
+    """mu(I) (Jop et al. 2006) in Lube et al. 2005's channel, a = 1, 4 mm: the flowing grains
+    are slowed, so the run-out is shorter than with rate-independent friction (docs/sph.md:
+    1.23 against 1.59, Lube's fit 1.2) and the deposit is steeper, and it still comes to rest
+    (at rest mu(I) is the static friction)."""
+    W = validation.LUBE2005_CHANNEL
+    const = validation.column_collapse(1.0, base=0.06, dx=4e-3, channel_width=W)
+    mui = validation.column_collapse(1.0, from_medium("3 mm glass CP", rheology="mu-i"),
+                                     base=0.06, dx=4e-3, channel_width=W)
+    assert mui["runout"] < const["runout"] - 0.2
+    assert mui["deposit_slope_deg"] > const["deposit_slope_deg"] + 1.0
+    assert mui["height"] >= const["height"]
+    assert mui["p95_speed"] < 1e-3
+
+
+def test_mu_i_is_refused_by_the_3d_solver():
+    from terradyn.sph import plate3d
+    with pytest.raises(InputError, match="rheology"):
+        plate3d.plate_push3d(from_medium("poppy LP", rheology="mu-i"), dx=8e-3)
 
 
 def test_static_height_bound_conserves_area_and_caps_at_the_full_height():

@@ -223,3 +223,22 @@ def test_leg3d_writes_the_curves_scores_and_figure(monkeypatch, capsys, tmp_path
     stored = json.loads(out.read_text())
     assert len(stored["theta_deg"]) == 271 and stored["Fz_N"][135] == pytest.approx(4.0)
     assert fig.stat().st_size > 1000
+
+
+@pytest.mark.parametrize("cmd", [["run", "--quick"], ["column", "--quick"], ["plate", "--quick"]])
+def test_rheology_checked_before_the_run(cmd, no_work, capsys):
+    assert main(["sph", *cmd, "--rheology", "viscous"]) == 2
+    _one_line_error(capsys, "rheology", "mu-i")
+
+
+def test_mu_i_needs_a_named_medium(no_work, capsys):
+    assert main(["sph", "run", "--quick", "--medium", "my sand", "--density-kg-m3", "1600",
+                 "--friction-deg", "30", "--rheology", "mu-i"]) == 2
+    _one_line_error(capsys, "rheology", "Li 2013 medium")
+
+
+def test_validate_checks_rheology_before_making_the_folder(capsys, tmp_path):
+    out = tmp_path / "v"
+    assert main(["sph", "validate", "--quick", "--out", str(out), "--rheology", "fast"]) == 2
+    _one_line_error(capsys, "rheology")
+    assert not out.exists()

@@ -31,20 +31,21 @@ _DENSITY = typer.Option(None, "--density-kg-m3", help="Your own medium: bulk den
 _FRICTION = typer.Option(None, "--friction-deg", help="Friction angle, deg (default: the medium's plate-test calibration shipped with terradyn where there is one, else its angle of repose, Li 2013 Table S1; docs/sph.md).")
 _DILATANCY = typer.Option("none", "--dilatancy", help="Flow rule: none (psi = 0) or bolton (a CP medium dilates until its LP packing: psi = (phi_CP - phi_LP) / 0.8, Bolton 1986; poppy CP, 0.3 mm glass CP).")
 _DP_MATCH = typer.Option("plane-strain", "--dp-match", help="Drucker-Prager cone matched to the friction angle: plane-strain (alpha = sin(phi)/3, mobilises phi in plane strain) or bui2008 (the former cone, mobilises less; a named medium then takes its repose angle unless --friction-deg is given). docs/sph.md.")
+_RHEOLOGY = typer.Option("constant", "--rheology", help="Friction law: constant (rate-independent, the default) or mu-i (Jop et al. 2006's mu(I) of glass beads on the medium's calibrated friction angle; a Li 2013 medium only; docs/sph.md).")
 _CHANNEL = typer.Option(None, "--channel-width-cm", help="Side walls of a quasi-2D channel this far apart, cm, with Coulomb friction pressed by the out-of-plane stress (default: none, plane strain; Lube et al. 2005's channel: 10).")
 _WALL_FRICTION = typer.Option(None, "--wall-friction-deg", help="Grain-wall friction angle of the side walls, deg, in [0, 60] (default: the medium's friction angle; needs --channel-width-cm).")
 _BOUNDARY = typer.Option("resolved", "--boundary", help="Leg boundary: resolved (sides kept apart, contact at dx/4) or guard (the model before issue 17).")
 
 
 def _material(medium: str, density_kg_m3: float | None, friction_deg: float | None,
-              dilatancy: str = "none", dp_match: str = "plane-strain"):
+              dilatancy: str = "none", dp_match: str = "plane-strain", rheology: str = "constant"):
     """The SPH material of the options (:func:`terradyn.models.sph.material`)."""
     from .. import models
     from ..models.sph import material
 
     return material(medium, models.get("sph").check_options(
         {"density_kg_m3": density_kg_m3, "friction_deg": friction_deg, "dilatancy": dilatancy,
-         "dp_match": dp_match}))
+         "dp_match": dp_match, "rheology": rheology}))
 
 
 @contextmanager
@@ -129,6 +130,7 @@ def run_cmd(
     friction_deg: Optional[float] = _FRICTION,
     dilatancy: str = _DILATANCY,
     dp_match: str = _DP_MATCH,
+    rheology: str = _RHEOLOGY,
     boundary: str = _BOUNDARY,
     quick: bool = _QUICK,
     dx_mm: Optional[float] = _DX,
@@ -174,7 +176,8 @@ def run_cmd(
     opts = model.check_options(dict(
         quick=quick, dx_mm=dx_mm, cfl=cfl, lowpass_hz=lowpass_hz, backend=Backend(backend).value,
         boundary=boundary, friction_deg=friction_deg, density_kg_m3=density_kg_m3,
-        dilatancy=dilatancy, dp_match=dp_match, thickness_cm=positive("thickness-cm", thickness_cm, "cm"),
+        dilatancy=dilatancy, dp_match=dp_match, rheology=rheology,
+        thickness_cm=positive("thickness-cm", thickness_cm, "cm"),
         **{k: v for k, v in (("channel_width_cm", channel_width_cm),
                              ("wall_friction_deg", wall_friction_deg)) if v is not None}))
     sph_model.config(opts)
@@ -234,6 +237,7 @@ def bed_cmd(medium: str = _MEDIUM, quick: bool = _QUICK, dx_mm: Optional[float] 
 @sph_app.command("column")
 def column_cmd(aspect: list[float] = typer.Option([0.5, 1.0, 2.0], help="Aspect ratios H/L (repeat)."),
                medium: str = _MEDIUM, quick: bool = _QUICK, dx_mm: Optional[float] = _DX,
+               rheology: str = _RHEOLOGY,
                channel_width_cm: Optional[float] = _CHANNEL,
                wall_friction_deg: Optional[float] = _WALL_FRICTION,
                plot: Optional[Path] = typer.Option(None, help="Figure: deposits and run-out vs Lube et al. 2005.")):
@@ -253,13 +257,14 @@ def column_cmd(aspect: list[float] = typer.Option([0.5, 1.0, 2.0], help="Aspect 
             raise InputError("wall-friction-deg", "has no effect without --channel-width-cm")
         in_range("wall-friction-deg", wall_friction_deg, 0.0, 60.0, "deg")
     io.check_plot(plot)
+    mat = _material(medium, None, None, rheology=rheology)
     base = 0.06 if quick else 0.1
     walls = dict(channel_width=channel_width_cm * 1e-2 if channel_width_cm is not None else None,
                  wall_friction=math.radians(wall_friction_deg) if wall_friction_deg is not None else None)
     rows = []
     with _progress("columns") as cb:
         for k, a in enumerate(aspect):
-            rows.append(validation.column_collapse(a, medium, base=base, dx=dx, **walls))
+            rows.append(validation.column_collapse(a, mat, base=base, dx=dx, **walls))
             cb(k + 1, len(aspect))
     typer.echo(json.dumps([{k: v for k, v in r.items() if isinstance(v, float)} for r in rows]))
     if plot:
@@ -269,7 +274,8 @@ def column_cmd(aspect: list[float] = typer.Option([0.5, 1.0, 2.0], help="Aspect 
 @sph_app.command("plate")
 def plate_cmd(medium: str = _MEDIUM, density_kg_m3: Optional[float] = _DENSITY,
               friction_deg: Optional[float] = _FRICTION, dilatancy: str = _DILATANCY,
-              dp_match: str = _DP_MATCH, boundary: str = _BOUNDARY, quick: bool = _QUICK, dx_mm: Optional[float] = _DX,
+              dp_match: str = _DP_MATCH, rheology: str = _RHEOLOGY, boundary: str = _BOUNDARY,
+              quick: bool = _QUICK, dx_mm: Optional[float] = _DX,
               speed_cm_s: float = typer.Option(1.0, help="Plate speed, cm/s."),
               depth_cm: float = typer.Option(5.0, help="Final depth, cm."),
               plot: Optional[Path] = typer.Option(None, help="Figure: stress on the plate vs depth.")):
@@ -282,7 +288,8 @@ def plate_cmd(medium: str = _MEDIUM, density_kg_m3: Optional[float] = _DENSITY,
     positive("depth-cm", depth_cm, "cm")
     io.check_plot(plot)
     cfg = default_config(quick, dx=_dx(dx_mm), boundary=boundary)
-    r = validation.plate_push(_material(medium, density_kg_m3, friction_deg, dilatancy, dp_match),
+    r = validation.plate_push(_material(medium, density_kg_m3, friction_deg, dilatancy, dp_match,
+                                        rheology),
                               speed=speed_cm_s * 1e-2, depth=depth_cm * 1e-2, config=cfg)
     typer.echo(json.dumps({"alpha_z_N_per_cm3": r["alpha_z"] / 1e6,
                            "alpha_z_through_origin_N_per_cm3": r["alpha_z_origin"] / 1e6,

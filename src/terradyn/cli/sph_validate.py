@@ -103,6 +103,7 @@ def validate_cmd(
     dx_mm: Optional[float] = typer.Option(None, "--dx-mm", help="Particle spacing, mm (default: 2.5, the production resolution; --quick 4)."),
     omega: float = typer.Option(1.1, help="Angular speed of the leg tests, rad/s (1.1 is 5.5 x fewer steps than 0.2; the rate check is in docs/sph.md)."),
     realizations: int = typer.Option(1, help="Runs per leg test (1..20), averaged: the measured curves are means over trials; each run's peak and the standard error go into validation.json."),
+    rheology: str = typer.Option("constant", "--rheology", help="Friction law of the column, plate, rig and leg scenes: constant (rate-independent) or mu-i (Jop et al. 2006's mu(I) on each medium's calibrated angle; docs/sph.md)."),
 ):
     """Run the SPH validation scenes and compare with measurements: validation.json (quantity,
     ours, reference, source, difference, verdict) and figures in OUT.
@@ -118,6 +119,9 @@ def validate_cmd(
     dx = None if dx_mm is None else in_range("dx-mm", dx_mm, 1.0, 10.0, "mm") * 1e-3
     in_range("omega", omega, 0.01, 10.0, "rad/s")
     suite.check_realizations(realizations)  # before the output folder is made
+    from ..sph.materials import RHEOLOGIES
+
+    choice("rheology", rheology, list(RHEOLOGIES))
     if realizations > 1 and scene and "legs" not in scene:
         from ..models import ignored
 
@@ -127,7 +131,7 @@ def validate_cmd(
     out.mkdir(parents=True, exist_ok=True)
     res = suite.validate(quick=quick, scenes=tuple(scene) or suite.SCENES, media=medium or None,
                          dx=dx, omega=omega, progress=lambda m: err(f"[dim]{m}[/]"),
-                         figures_dir=out, realizations=realizations)
+                         figures_dir=out, realizations=realizations, rheology=rheology)
     res["summary"] = suite.summary(res)
     _atomic_json(out / "validation.json", res)
     for c in res["checks"]:

@@ -39,6 +39,9 @@ OPTIONS = (
                 "angle; needs channel_width_cm)."),
     Option("dilatancy", str, None, choices=("none", "bolton"),
            help="Flow rule (default none; bolton: a CP medium dilates until its LP packing, Bolton 1986)."),
+    Option("rheology", str, None, choices=("constant", "mu-i"),
+           help="Friction law (default constant: rate-independent; mu-i: Jop et al. 2006's mu(I) "
+                "on the medium's calibrated friction angle, a Li 2013 medium only)."),
     Option("dp_match", str, None, choices=("plane-strain", "bui2008"),
            help="Drucker-Prager cone matched to the friction angle (default plane-strain; bui2008: "
                 "the former cone, which mobilises less friction; a named medium then uses its "
@@ -91,6 +94,9 @@ def material(medium, opts: dict, field=lambda k: k.replace("_", "-")):
         if opts.get("dilatancy", "none") != "none":
             raise InputError(field("dilatancy"), "'bolton' needs a Li 2013 medium with both packings "
                                                  "(poppy CP, 0.3 mm glass CP), not your own density")
+        if opts.get("rheology", "constant") != "constant":
+            raise InputError(field("rheology"), "'mu-i' needs a Li 2013 medium (its grain size and "
+                                                "density, Table S1), not your own density")
         return from_properties(medium, opts["density_kg_m3"], opts["friction_deg"],
                                dp_match=opts.get("dp_match") or "plane-strain")
     if medium not in media.MEDIA:
@@ -99,10 +105,13 @@ def material(medium, opts: dict, field=lambda k: k.replace("_", "-")):
     try:
         return from_medium(medium, friction_deg=opts.get("friction_deg"),
                            dilatancy=opts.get("dilatancy") or "none",
-                           dp_match=opts.get("dp_match") or "plane-strain")
+                           dp_match=opts.get("dp_match") or "plane-strain",
+                           rheology=opts.get("rheology") or "constant")
     except InputError as e:
-        if e.field != "dilatancy":
+        if e.field not in ("dilatancy", "dp_match"):
             raise
+        if e.field == "dp_match":
+            raise InputError(field("dp_match"), str(e).split(": ", 1)[-1]) from None
         raise InputError(field("dilatancy"), str(e).split(": ", 1)[-1]) from None
 
 
@@ -145,6 +154,8 @@ def _resolve(opts: dict) -> dict:
         out["dilatancy"] = o["dilatancy"]
     if o.get("dp_match", "plane-strain") != "plane-strain":  # absent = the default cone
         out["dp_match"] = o["dp_match"]
+    if o.get("rheology", "constant") != "constant":  # absent = rate-independent
+        out["rheology"] = o["rheology"]
     if cfg.settle_time is not None:
         out["settle_time_s"] = _canon(cfg.settle_time)
     if cfg.lowpass_hz is not None:

@@ -228,7 +228,7 @@ def regather(cell_index, vx, vz, gvx, gvz, rho, mass, kind, sxx, szz, sxz, out_f
 def strain_stress(srt, srtk, cell_index, h, xmin, zmin, inv_cell, ncx, ncz, cell_start,
                   rho, sxx, szz, sxz, syy, dt, shear_mod, bulk_mod, alpha_phi, k_c, rho_min,
                   rho_max, alpha_psi, rho_crit, vj, vn, nbj, nbw, nbn, rlist, build, buf, bounds,
-                  nchunk):
+                  nchunk, mu_s=0.0, mu_rise=0.0, mu_i0=1.0, mu_dscale=0.0):
     """First pass (velocities only): d rho/dt and the velocity gradient L of every granular
     particle (lxx = dvx/dx, lxz = dvx/dz, ...), then its new density and stress
     (:func:`dp_update`). Reads only the cell-ordered copies made by :func:`gather`, so it can
@@ -249,7 +249,8 @@ def strain_stress(srt, srtk, cell_index, h, xmin, zmin, inv_cell, ncx, ncz, cell
     par = StrainPar(h=h, xmin=xmin, zmin=zmin, inv_cell=inv_cell, ncx=ncx, ncz=ncz, dt=dt,
                     shear_mod=shear_mod, bulk_mod=bulk_mod, alpha_phi=alpha_phi, k_c=k_c,
                     rho_min=rho_min, rho_max=rho_max, alpha_psi=alpha_psi, rho_crit=rho_crit,
-                    rlist=rlist, build=build)
+                    rlist=rlist, build=build, mu_s=mu_s, mu_rise=mu_rise, mu_i0=mu_i0,
+                    mu_dscale=mu_dscale)
     for phase in range(2):
         for c in prange((nchunk + 1 - phase) // 2):
             cc = 2 * c + phase
@@ -264,7 +265,7 @@ def strain_stress(srt, srtk, cell_index, h, xmin, zmin, inv_cell, ncx, ncz, cell
             rho[i], buf[k, BUF_DRHO], buf[k, BUF_LXX], buf[k, BUF_LXZ], buf[k, BUF_LZX],
             buf[k, BUF_LZZ], sxx[i], szz[i],
             sxz[i], syy[i], dt, shear_mod, bulk_mod, alpha_phi, k_c, rho_min, rho_max, alpha_psi,
-            rho_crit)
+            rho_crit, mu_s, mu_rise, mu_i0, mu_dscale)
         for f in range(5):
             buf[k, f] = 0.0
 
@@ -335,14 +336,16 @@ def accelerations_kick(srt, srtk, cell_index, mass, h, c0, av_alpha, av_beta, av
 
 @numba.njit(parallel=True, fastmath=True, cache=True)
 def update_stress(rho, sxx, szz, sxz, syy, sidx, drho, lxx, lxz, lzx, lzz, dt, shear_mod,
-                  bulk_mod, alpha_phi, k_c, rho_min, rho_max, alpha_psi=0.0, rho_crit=0.0):
+                  bulk_mod, alpha_phi, k_c, rho_min, rho_max, alpha_psi=0.0, rho_crit=0.0,
+                  mu_s=0.0, mu_rise=0.0, mu_i0=1.0, mu_dscale=0.0):
     """:func:`dp_update` for the granular particles ``sidx`` (the solver fuses it into
     :func:`strain_stress`; this form serves tests)."""
     for kk in prange(sidx.shape[0]):
         i = sidx[kk]
         rho[i], sxx[i], szz[i], sxz[i], syy[i] = dp_update(
             rho[i], drho[i], lxx[i], lxz[i], lzx[i], lzz[i], sxx[i], szz[i], sxz[i], syy[i], dt,
-            shear_mod, bulk_mod, alpha_phi, k_c, rho_min, rho_max, alpha_psi, rho_crit)
+            shear_mod, bulk_mod, alpha_phi, k_c, rho_min, rho_max, alpha_psi, rho_crit, mu_s,
+            mu_rise, mu_i0, mu_dscale)
 
 
 @numba.njit(parallel=True, fastmath=True, cache=True)
@@ -371,13 +374,15 @@ def leg_sides(x, z, kind, dcl, cl, hip_x, hip_z, ang, box, reach2):
 #: Scalars of :func:`cpu_steps` (float array ``fp``), by index.
 FP = ("h", "xmin", "zmin", "inv_cell", "gx", "gz", "dt", "shear_mod", "bulk_mod", "alpha_phi",
       "k_c", "rho_min", "rho_max", "c0", "av_alpha", "av_beta", "half_t", "gap", "max_push",
-      "vmax_allowed", "side_reach2", "alpha_psi", "rho_crit", "wall_k")
+      "vmax_allowed", "side_reach2", "alpha_psi", "rho_crit", "wall_k", "mu_s", "mu_rise", "mu_i0",
+      "mu_dscale")
 #: Integers of :func:`cpu_steps` (int64 array ``ip``): grid size, flags, and two counters it
 #: updates: the pair chunks and the list builds so far.
 IP = ("ncx", "ncz", "noslip", "av_boundary", "has_leg", "nchunk", "builds", "sides")
 (FP_H, FP_XMIN, FP_ZMIN, FP_INV_CELL, FP_GX, FP_GZ, FP_DT, FP_SHEAR_MOD, FP_BULK_MOD,
  FP_ALPHA_PHI, FP_K_C, FP_RHO_MIN, FP_RHO_MAX, FP_C0, FP_AV_ALPHA, FP_AV_BETA, FP_HALF_T, FP_GAP,
- FP_MAX_PUSH, FP_VMAX_ALLOWED, FP_SIDE_REACH2, FP_ALPHA_PSI, FP_RHO_CRIT, FP_WALL_K) = range(len(FP))
+ FP_MAX_PUSH, FP_VMAX_ALLOWED, FP_SIDE_REACH2, FP_ALPHA_PSI, FP_RHO_CRIT, FP_WALL_K, FP_MU_S,
+ FP_MU_RISE, FP_MU_I0, FP_MU_DSCALE) = range(len(FP))
 (IP_NCX, IP_NCZ, IP_NOSLIP, IP_AV_BOUNDARY, IP_HAS_LEG, IP_NCHUNK, IP_BUILDS,
  IP_SIDES) = range(len(IP))
 
@@ -418,6 +423,10 @@ def cpu_steps(poses, dampings, forces, x, z, vx, vz, rho, sxx, szz, sxz, syy, gv
     vmax_allowed = fp[FP_VMAX_ALLOWED]
     side_reach2 = fp[FP_SIDE_REACH2]
     wall_k = fp[FP_WALL_K]
+    mu_s = fp[FP_MU_S]
+    mu_rise = fp[FP_MU_RISE]
+    mu_i0 = fp[FP_MU_I0]
+    mu_dscale = fp[FP_MU_DSCALE]
     sides = ip[IP_SIDES] != 0
     ncx = ip[IP_NCX]
     ncz = ip[IP_NCZ]
@@ -459,7 +468,7 @@ def cpu_steps(poses, dampings, forces, x, z, vx, vz, rho, sxx, szz, sxz, syy, gv
         strain_stress(srt, srtk, cell_index, h, xmin, zmin, inv_cell, ncx, ncz, cell_start,
                       rho, sxx, szz, sxz, syy, dt, shear_mod, bulk_mod, alpha_phi, k_c, rho_min,
                       rho_max, alpha_psi, rho_crit, vj, vn, nbj, nbw, nbn, rlist, build, buf,
-                      bounds, nchunk)
+                      bounds, nchunk, mu_s, mu_rise, mu_i0, mu_dscale)
         if bidx.shape[0]:
             boundary_state(x, z, vx, vz, rho, mass, kind, nox, noz, dcl, sxx, szz, sxz, syy,
                            gvx, gvz, bidx, acc_x, acc_z, gx, gz, h, xmin, zmin, inv_cell, ncx,
@@ -515,6 +524,7 @@ class CPUBackend:
                    av_beta=cfg.av_beta, half_t=s.half_t, gap=s.gap, max_push=0.1 * cfg.dx,
                    vmax_allowed=s.vmax_allowed, side_reach2=s.side_reach ** 2,
                    alpha_psi=mat.alpha_psi, rho_crit=mat.dilation_limit, wall_k=s.wall_k)
+        val.update(zip(("mu_s", "mu_rise", "mu_i0", "mu_dscale"), mat.rate_constants))
         self.fp = np.array([val[k] for k in FP], dtype=np.float64)
         ival = dict(ncx=s.ncx, ncz=s.ncz, noslip=int(bool(cfg.noslip)),
                     av_boundary=int(bool(cfg.av_boundary)), has_leg=int(leg is not None),

@@ -53,6 +53,19 @@ BUI2008 = ("H. H. Bui, R. Fukagawa, K. Sako, S. Ohno, Lagrangian meshfree partic
            "for large deformation and failure flows of geomaterial using elastic-plastic soil "
            "constitutive model, Int. J. Numer. Anal. Meth. Geomech. 32:1537-1570 (2008)")
 JAKY1944 = "J. Jaky, The coefficient of earth pressure at rest, J. Soc. Hung. Archit. Eng. (1944)"
+JOP2006 = ("P. Jop, Y. Forterre, O. Pouliquen, A constitutive law for dense granular flows, Nature "
+           "441:727-730 (2006): mu(I) = mu_s + (mu_2 - mu_s) / (1 + I_0 / I), I = gamma_dot d / "
+           "sqrt(P / rho_s); glass beads mu_s = tan 20.9 deg, mu_2 = tan 32.76 deg, I_0 = 0.279")
+DUNATUNGA2015 = ("S. Dunatunga, K. Kamrin, Continuum modelling and simulation of granular flows "
+                 "through their many phases, J. Fluid Mech. 779:483-513 (2015): mu(I) as the "
+                 "rate-dependent yield of an elasto-plastic continuum")
+#: Jop et al. (2006)'s glass beads: the rise of the friction coefficient from rest to fast
+#: flow, mu_2 - mu_s = tan(32.76 deg) - tan(20.9 deg), and the inertial number I_0 of half
+#: the rise.
+JOP2006_MU_RISE = math.tan(math.radians(32.76)) - math.tan(math.radians(20.9))
+JOP2006_I0 = 0.279
+#: The rheologies: rate-independent friction (the brief's Drucker-Prager) or mu(I).
+RHEOLOGIES = ("constant", "mu-i")
 
 
 @dataclass(frozen=True)
@@ -75,6 +88,10 @@ class GranularMaterial:
     k0: float | None = None
     critical_density: float | None = None
     dp_match: str = "plane-strain"
+    mu_rise: float = 0.0
+    inertial_i0: float = JOP2006_I0
+    grain_diameter: float | None = None
+    grain_density: float | None = None
     sources: dict = field(default_factory=dict, compare=False)
 
     def __post_init__(self):
@@ -93,6 +110,27 @@ class GranularMaterial:
         if self.k0 is not None:
             in_range("k0", self.k0, 0.0, 1.0)
         choice("dp_match", self.dp_match, list(DP_MATCHES))
+        in_range("mu_rise", self.mu_rise, 0.0, 2.0)
+        if self.mu_rise > 0.0:
+            if self.dp_match != "plane-strain":
+                raise InputError("dp_match", "mu(I) (mu_rise > 0) is matched in plane strain only: "
+                                 "use dp_match='plane-strain'")
+            in_range("inertial_i0", self.inertial_i0, 1e-4, 10.0)
+            for name, v, unit in (("grain_diameter", self.grain_diameter, "m"),
+                                  ("grain_density", self.grain_density, "kg/m^3")):
+                if v is None:
+                    raise InputError(name, f"mu(I) (mu_rise > 0) needs the {name.replace('_', ' ')} "
+                                     f"({unit}) to form the inertial number")
+                positive(name, v, unit)
+
+    @property
+    def rate_constants(self) -> tuple:
+        """(mu_s, mu_rise, I_0, d sqrt(rho_s)) of the mu(I) yield (class docstring); mu_rise = 0:
+        rate-independent."""
+        if self.mu_rise <= 0.0:
+            return (math.tan(self.friction), 0.0, 1.0, 0.0)
+        return (math.tan(self.friction), float(self.mu_rise), float(self.inertial_i0),
+                float(self.grain_diameter) * math.sqrt(float(self.grain_density)))
 
     @property
     def shear_modulus(self) -> float:
@@ -154,6 +192,9 @@ class GranularMaterial:
                 "cohesion_Pa": self.cohesion, "dilatancy_deg": self.dilatancy / DEG,
                 "critical_density_kg_m3": self.critical_density,
                 "k0": self.lateral_ratio, "dp_match": self.dp_match,
+                "rheology": "mu-i" if self.mu_rise > 0 else "constant",
+                "mu_rise": self.mu_rise, "inertial_i0": self.inertial_i0 if self.mu_rise > 0 else None,
+                "grain_diameter_m": self.grain_diameter, "grain_density_kg_m3": self.grain_density,
                 "mobilised_friction_deg": self.mobilised_friction / DEG, "sources": self.sources}
 
 
@@ -174,7 +215,8 @@ BOLTON1986 = ("M. D. Bolton, The strength and dilatancy of sands, Geotechnique 3
 
 def from_medium(medium: str, youngs: float | None = None, poisson: float = 0.3,
                 friction_deg: float | None = None, friction: str | None = None,
-                dilatancy: str = "none", dp_match: str = "plane-strain") -> GranularMaterial:
+                dilatancy: str = "none", dp_match: str = "plane-strain",
+                rheology: str = "constant") -> GranularMaterial:
     """The SPH material for a medium of :data:`terradyn.media.MEDIA` (Li 2013 Table S1).
 
     ``friction``: "repose" (the angle of repose, Table S1) or "calibrated" (the plane-strain
@@ -194,12 +236,19 @@ def from_medium(medium: str, youngs: float | None = None, poisson: float = 0.3,
     packing is at its critical state (psi = 0).
 
     ``dp_match``: "plane-strain" (default) or "bui2008", how the cone's constants match phi
-    (module docstring)."""
+    (module docstring).
+
+    ``rheology``: "constant" (default; rate-independent friction) or "mu-i": Jop et al.
+    (2006)'s mu(I) with their glass beads' rise mu_2 - mu_s and I_0 (the only measured mu(I)
+    in the brief's sources; used for the seeds too, an assumption) on top of the friction
+    angle above (which stays the quasi-static one: the plate calibration is unchanged), and
+    the medium's grain diameter and grain density from Li 2013 Table S1."""
     from .calibration import shipped
 
     choice("dp_match", dp_match, list(DP_MATCHES))
     choice("medium", medium, list(MEDIA))
     choice("dilatancy", dilatancy, ["bolton", "none"])
+    choice("rheology", rheology, list(RHEOLOGIES))
     m = MEDIA[medium]
     found = shipped().get(medium)
     if found is not None and found.get("dp_match", "bui2008") != dp_match:
@@ -247,7 +296,12 @@ def from_medium(medium: str, youngs: float | None = None, poisson: float = 0.3,
     return GranularMaterial(
         name=medium, density=m.bulk_density, youngs=youngs, poisson=poisson, friction=phi,
         dilatancy=psi, critical_density=rho_crit, dp_match=dp_match,
+        **(dict(mu_rise=JOP2006_MU_RISE, inertial_i0=JOP2006_I0, grain_diameter=m.grain_diameter,
+                grain_density=m.grain_density) if rheology == "mu-i" else {}),
         sources={
+            "rheology": (f"mu(I): rise and I_0 of glass beads, {JOP2006}; elasto-plastic form: "
+                         f"{DUNATUNGA2015}; grain size and density: {LI2013}, Table S1"
+                         if rheology == "mu-i" else "rate-independent friction (Bui et al. 2008)"),
             "dilatancy": psi_src,
             "density": f"grain density x volume fraction, {LI2013}, Table S1",
             "friction": src,

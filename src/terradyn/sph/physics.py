@@ -64,7 +64,8 @@ Gravity = namedtuple("Gravity", "gx gz")
 #: material's elastic and Drucker-Prager constants, density bounds, Verlet-list radius, and
 #: whether the lists are rebuilt this step.
 StrainPar = namedtuple("StrainPar", "h xmin zmin inv_cell ncx ncz dt shear_mod bulk_mod "
-                                    "alpha_phi k_c rho_min rho_max alpha_psi rho_crit rlist build")
+                                    "alpha_phi k_c rho_min rho_max alpha_psi rho_crit rlist build "
+                                    "mu_s mu_rise mu_i0 mu_dscale")
 #: Pass 2 (:func:`_accel_kick_one`, :func:`_kick_one`), made by :func:`_accel_par`: grid,
 #: sound speed, artificial viscosity, gravity, the hip's position and velocity and the leg's
 #: clockwise angular speed, the contact guard (leg half thickness, gap, largest push per
@@ -101,7 +102,8 @@ def wendland_w(r, h):
 
 @_source
 def dp_update(rho, drho, lxx, lxz, lzx, lzz, sxx, szz, sxz, syy, dt, shear_mod, bulk_mod,
-              alpha_phi, k_c, rho_min, rho_max, alpha_psi, rho_crit):
+              alpha_phi, k_c, rho_min, rho_max, alpha_psi, rho_crit, mu_s, mu_rise, mu_i0,
+              mu_dscale):
     """One particle's density and Drucker-Prager stress over one step: Jaumann rate + Hooke's
     law (plane strain), then the Bui et al. (2008) return: tension cut-off and stress scaling
     onto the yield surface. The density is kept in [rho_min, rho_max]: a dry packing neither
@@ -115,7 +117,15 @@ def dp_update(rho, drho, lxx, lxz, lzx, lzz, sxx, szz, sxz, syy, dt, shear_mod, 
     / sqrt(J2)), I1 -> I1 - 9 K alpha_psi d lambda (de Souza Neto, Peric & Owen 2008, sec.
     8.3.3), to the apex where the cone return overshoots it. Plastic dilation raises the
     mean compression of a confined particle; below rho_crit (the critical-state, loosest
-    packing) it stops."""
+    packing) it stops.
+
+    Rate dependence (``mu_rise`` > 0; :class:`terradyn.sph.materials.GranularMaterial`): the
+    cone's friction is that of mu(I) = mu_s + mu_rise I / (I + I_0) (Jop et al. 2006), with
+    I = |gamma_dot| d sqrt(rho_s) / sqrt(P) (``mu_dscale`` = d sqrt(rho_s); |gamma_dot| =
+    sqrt(2 e':e') of this step's strain rate, P the trial mean pressure; I = inf where P <= 0)
+    and the plane-strain match alpha_phi = sin(atan mu) / 3 = mu / (3 sqrt(1 + mu^2)); the
+    tension cut-off keeps the static cone. mu_rise = 0: the rate-independent model,
+    unchanged."""
     rho = min(max(rho + dt * drho, rho_min), rho_max)
     exx = lxx
     ezz = lzz
@@ -145,6 +155,16 @@ def dp_update(rho, drho, lxx, lxz, lzx, lzz, sxx, szz, sxz, syy, dt, shear_mod, 
     dzz = s_zz - m
     dyy = s_yy - m
     j2 = 0.5 * (dxx * dxx + dzz * dzz + dyy * dyy) + s_xz * s_xz
+    if mu_rise > 0.0:  # mu(I): the cone's friction from the inertial number
+        exd = exx - third
+        ezd = ezz - third
+        gd = math.sqrt(2.0 * (exd * exd + ezd * ezd + third * third + 2.0 * exz * exz))
+        if m < 0.0:
+            inum = gd * mu_dscale / math.sqrt(-m)
+            mu = mu_s + mu_rise * inum / (inum + mu_i0)
+        else:
+            mu = mu_s + mu_rise
+        alpha_phi = mu / (3.0 * math.sqrt(1.0 + mu * mu))
     lim = -alpha_phi * i1 + k_c
     if alpha_psi > 0.0 and rho > rho_crit and j2 > lim * lim and j2 > 0.0:
         sj = math.sqrt(j2)
@@ -341,6 +361,7 @@ def _strain_stress_one(k, X, Z, VX, VZ, VOL, RHO, NOX, NOZ, KND, DCL, cell_index
     shear_mod, bulk_mod, alpha_phi, k_c = par.shear_mod, par.bulk_mod, par.alpha_phi, par.k_c
     rho_min, rho_max = par.rho_min, par.rho_max
     alpha_psi, rho_crit = par.alpha_psi, par.rho_crit
+    mu_s, mu_rise, mu_i0, mu_dscale = par.mu_s, par.mu_rise, par.mu_i0, par.mu_dscale
     sup2, dwc, inv_h = _support(h)
     i = cell_index[k]
     xi = X[k]
@@ -373,7 +394,8 @@ def _strain_stress_one(k, X, Z, VX, VZ, VOL, RHO, NOX, NOZ, KND, DCL, cell_index
     dr, gxx, gxz, gzx, gzz = acc
     rho[i], sxx[i], szz[i], sxz[i], syy[i] = dp_update(
         rho[i], dr, gxx, gxz, gzx, gzz, sxx[i], szz[i], sxz[i], syy[i], dt, shear_mod,
-        bulk_mod, alpha_phi, k_c, rho_min, rho_max, alpha_psi, rho_crit)
+        bulk_mod, alpha_phi, k_c, rho_min, rho_max, alpha_psi, rho_crit, mu_s, mu_rise, mu_i0,
+        mu_dscale)
 
 
 @_source

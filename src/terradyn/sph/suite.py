@@ -262,12 +262,20 @@ def leg_vs_measured(name: str, medium, *, omega=1.1, dx=4e-3, config=None, progr
 
 # ------------------------------------------------------------------------------- the run
 def validate(*, quick=False, scenes=SCENES, media=None, dx=None, omega=1.1, progress=None,
-             figures_dir=None, realizations: int = 1) -> dict:
+             figures_dir=None, realizations: int = 1, rheology: str = "constant") -> dict:
     """Run the scenes; returns {"checks": [Check.describe()...], "details": {...}}. ``quick``:
     4 mm particles, columns a = 1 only, the rig's 3 x 5 subset, the flat leg only.
-    ``realizations``: runs per leg test, averaged (:func:`leg_vs_measured`)."""
+    ``realizations``: runs per leg test, averaged (:func:`leg_vs_measured`). ``rheology``:
+    "constant" (rate-independent friction, the model's default) or "mu-i" (Jop et al. 2006's
+    mu(I) on top of each medium's calibrated friction angle, :func:`from_medium`) for the
+    column, plate, rig and leg scenes."""
     from . import plots, validation
-    from .materials import MATERIALS, material
+    from .materials import MATERIALS, RHEOLOGIES, from_medium
+
+    choice("rheology", rheology, list(RHEOLOGIES))
+
+    def material(m):
+        return from_medium(m, rheology=rheology) if rheology != "constant" else MATERIALS[m]
 
     for s in scenes:
         choice("scene", s, list(SCENES))
@@ -297,8 +305,8 @@ def validate(*, quick=False, scenes=SCENES, media=None, dx=None, omega=1.1, prog
         W = validation.LUBE2005_CHANNEL
         for a in ((1.0,) if quick else (0.5, 1.0, 2.0, 4.0)):
             say(f"column a = {a:g}")
-            r = validation.column_collapse(a, "3 mm glass CP", base=0.06, dx=max(dx, 4e-3),
-                                           channel_width=W)
+            r = validation.column_collapse(a, material("3 mm glass CP"), base=0.06,
+                                           dx=max(dx, 4e-3), channel_width=W)
             rows.append(r)
             hf = r["height"] / a
             walls = f"side walls {W * 100:g} cm apart, grain-wall friction = phi"
@@ -312,7 +320,8 @@ def validate(*, quick=False, scenes=SCENES, media=None, dx=None, omega=1.1, prog
                                 f"Lube et al. 2005 fits (quasi-2D channel, walls {W * 100:g} cm apart)",
                                 "within 25 %", abs(r["runout"] / r["runout_lube"] - 1) <= 0.25))
             if r["runout_plane_strain_mpm"] is not None:
-                q = validation.column_collapse(a, "3 mm glass CP", base=0.06, dx=max(dx, 4e-3))
+                q = validation.column_collapse(a, material("3 mm glass CP"), base=0.06,
+                                               dx=max(dx, 4e-3))
                 free.append(q)
                 ref = q["runout_plane_strain_mpm"]
                 checks.append(Check("column", f"run-out (L_f - L_i)/L_i vs plane-strain continuum, a = {a:g} (no walls)",
@@ -357,7 +366,8 @@ def validate(*, quick=False, scenes=SCENES, media=None, dx=None, omega=1.1, prog
         for m in [x for x in media if x in LEG_MEDIA]:
             for leg in (("flat",) if quick else LEGS):
                 say(f"{leg} leg, {m}")
-                r = leg_vs_measured(leg, m, omega=omega, dx=dx, realizations=realizations)
+                r = leg_vs_measured(leg, material(m), omega=omega, dx=dx,
+                                    realizations=realizations)
                 details.setdefault("legs", {})[f"{leg} leg, {m}"] = {
                     "realizations": r["realizations"],
                     **{f"{c}_peaks_runs_N": r[c]["peaks_runs"] for c in ("Fz", "Fx")},
@@ -378,7 +388,8 @@ def validate(*, quick=False, scenes=SCENES, media=None, dx=None, omega=1.1, prog
     return {"checks": [c.describe() for c in checks], "details": details,
             "settings": {"quick": quick, "dx_m": dx, "omega_rad_s": omega, "scenes": list(scenes),
                          "leg_realizations": int(realizations),
-                         "media": media, "dp_match": sorted({material(m).dp_match for m in media})}}
+                         "media": media, "dp_match": sorted({material(m).dp_match for m in media}),
+                         "rheology": rheology}}
 
 
 def summary(result: dict) -> dict:

@@ -1,0 +1,83 @@
+"""What mu(I) does to the quasi-static tests: the plate and the flat leg with and without it.
+
+Jop et al. 2006's mu(I) (``from_medium(..., rheology="mu-i")``) raises the friction where the
+grains flow fast; the column collapse needs that (benchmarks/sph_column_walls.py). The plate
+test (which calibrates each medium's static angle) and the slow rotating-leg tests must not
+depend on it much, or the calibration and the leg checks would move. This runs, side by side
+in one process, the plate-down test and the flat leg (hip 2 cm, -135..135 deg, Li 2013 Fig.
+S5's media) with rate-independent friction and with mu(I), at the leg speeds given, and
+reports alpha_z, the peak lift and thrust and their ratios mu(I) / constant.
+
+    NUMBA_NUM_THREADS=1 python benchmarks/sph_mu_i.py [--dx-mm 4] [--omega 1.1 0.2]
+
+A study, not a timing benchmark: writes benchmarks/results/sph_mu_i.json.
+"""
+from __future__ import annotations
+
+import argparse
+import json
+import platform
+import time
+from pathlib import Path
+
+from terradyn.io import atomic_write_text
+from terradyn.media import MEDIA
+from terradyn.sph.calibration import plate_slope
+from terradyn.sph.materials import from_medium
+from terradyn.sph.suite import LEG_MEDIA, leg_vs_measured
+from terradyn.units import N_PER_CM3
+
+OUT = Path(__file__).parent / "results" / "sph_mu_i.json"
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--dx-mm", type=float, default=4.0)
+    ap.add_argument("--omega", type=float, nargs="+", default=[1.1], help="leg speeds, rad/s")
+    ap.add_argument("--media", nargs="+", default=list(LEG_MEDIA))
+    ap.add_argument("--leg", default="flat", choices=["flat", "c", "reverse-c"])
+    ap.add_argument("--no-plate", action="store_true")
+    ap.add_argument("--out", type=Path, default=OUT)
+    a = ap.parse_args()
+    dx = a.dx_mm * 1e-3
+    rows = []
+
+    def emit(row):
+        rows.append(row)
+        print(json.dumps(row), flush=True)
+        atomic_write_text(a.out, json.dumps({
+            "command": "python benchmarks/sph_mu_i.py", "dx_mm": a.dx_mm,
+            "machine": platform.processor() or platform.machine(), "rows": rows}, indent=1))
+
+    for m in a.media:
+        mats = {rh: from_medium(m, rheology=rh) for rh in ("constant", "mu-i")}
+        if not a.no_plate:
+            r = {}
+            for rh, mat in mats.items():
+                t0 = time.perf_counter()
+                r[rh] = plate_slope(mat, dx=dx)["alpha_z"] / N_PER_CM3
+                r[rh + "_wall_s"] = round(time.perf_counter() - t0, 1)
+            emit({"test": "plate", "medium": m, "alpha_z_constant_N_cm3": r["constant"],
+                  "alpha_z_mu_i_N_cm3": r["mu-i"], "ratio": r["mu-i"] / r["constant"],
+                  "measured_N_cm3": MEDIA[m].alpha_z_plate / N_PER_CM3,
+                  "wall_s": [r["constant_wall_s"], r["mu-i_wall_s"]]})
+        for om in a.omega:
+            out = {}
+            for rh, mat in mats.items():
+                t0 = time.perf_counter()
+                res = leg_vs_measured(a.leg, mat, omega=om, dx=dx)
+                out[rh] = {c: res[c]["peak_sph"] for c in ("Fz", "Fx")}
+                out[rh]["measured"] = {c: res[c]["peak_measured"] for c in ("Fz", "Fx")}
+                out[rh]["wall_s"] = round(time.perf_counter() - t0, 1)
+            emit({"test": f"{a.leg} leg", "medium": m, "omega_rad_s": om,
+                  "peak_lift_N": {rh: out[rh]["Fz"] for rh in mats},
+                  "peak_thrust_N": {rh: out[rh]["Fx"] for rh in mats},
+                  "ratio_lift": out["mu-i"]["Fz"] / out["constant"]["Fz"],
+                  "ratio_thrust": out["mu-i"]["Fx"] / out["constant"]["Fx"],
+                  "measured_lift_N": out["constant"]["measured"]["Fz"],
+                  "measured_thrust_N": out["constant"]["measured"]["Fx"],
+                  "wall_s": [out[rh]["wall_s"] for rh in mats]})
+
+
+if __name__ == "__main__":
+    main()
