@@ -19,6 +19,7 @@ import argparse
 import json
 import math
 import platform
+import sys
 import time
 from pathlib import Path
 
@@ -38,19 +39,27 @@ def main() -> None:
                     help="grain-wall friction angles (default: 0, half and all of the medium's)")
     ap.add_argument("--rheology", nargs="+", default=["constant", "mu-i"],
                     choices=["constant", "mu-i"])
+    ap.add_argument("--dilatancy-deg", type=float, nargs="+", default=[0.0],
+                    help="an experiment: dilatancy angles psi (deg) with the calibrated phi")
+    ap.add_argument("--critical-density-kg-m3", type=float,
+                    help="where dilation stops (needed with --dilatancy-deg)")
     ap.add_argument("--out", type=Path, default=OUT)
     a = ap.parse_args()
     phi = math.degrees(from_medium(MEDIUM).friction)
-    mats = {rh: from_medium(MEDIUM, rheology=rh) for rh in a.rheology}
+    mats = {(rh, psi): from_medium(MEDIUM, rheology=rh) for rh in a.rheology
+            for psi in a.dilatancy_deg}
+    mats = {(rh, psi): m.with_(dilatancy=math.radians(psi), critical_density=a.critical_density_kg_m3)
+            if psi else m for (rh, psi), m in mats.items()}
     walls = a.wall_friction_deg if a.wall_friction_deg else [0.0, round(phi / 2, 3), round(phi, 3)]
     rows = []
-    for rh, dx, asp, mw in ((rh, dx, asp, mw) for rh in a.rheology for dx in a.dx_mm
-                            for asp in a.aspects for mw in [None] + walls):
+    for (rh, psi), dx, asp, mw in ((k, dx, asp, mw) for k in mats for dx in a.dx_mm
+                                   for asp in a.aspects for mw in [None] + walls):
         t0 = time.perf_counter()
-        r = column_collapse(asp, mats[rh], base=0.06, dx=dx * 1e-3,
+        r = column_collapse(asp, mats[rh, psi], base=0.06, dx=dx * 1e-3,
                             channel_width=None if mw is None else LUBE2005_CHANNEL,
                             wall_friction=None if mw is None else math.radians(mw))
-        row = {"rheology": rh, "dx_mm": dx, "aspect": asp,
+        row = {"rheology": rh, "dilatancy_deg": psi,
+               "critical_density_kg_m3": a.critical_density_kg_m3, "dx_mm": dx, "aspect": asp,
                "channel_width_m": None if mw is None else LUBE2005_CHANNEL,
                "wall_friction_deg": mw, "H_f_over_H_i": round(r["height"] / asp, 4),
                "runout": round(r["runout"], 4), "runout_lube": round(r["runout_lube"], 4),
@@ -60,7 +69,7 @@ def main() -> None:
                "p95_speed_m_s": r["p95_speed"], "wall_s": round(time.perf_counter() - t0, 1)}
         rows.append(row)
         print(json.dumps(row), flush=True)
-    res = {"command": "python benchmarks/sph_column_walls.py", "medium": MEDIUM,
+    res = {"command": "python benchmarks/sph_column_walls.py", "argv": sys.argv[1:], "medium": MEDIUM,
            "friction_deg": round(phi, 3), "base_m": 0.06,
            "machine": platform.processor() or platform.machine(), "rows": rows}
     atomic_write_text(a.out, json.dumps(res, indent=1))
