@@ -91,7 +91,7 @@ def test_mu_i_material_checks():
         from_medium("poppy LP", rheology="viscous")
     m = from_medium("poppy LP", rheology="mu-i")
     assert m.describe()["rheology"] == "mu-i" and "Jop" in m.sources["rheology"]
-    assert MATERIALS["poppy LP"].describe()["rheology"] == "constant"
+    assert "rheology" not in MATERIALS["poppy LP"].describe()  # run keys of old checkpoints kept
 
 
 def test_material_rejects_bad_input():

@@ -242,3 +242,20 @@ def test_validate_checks_rheology_before_making_the_folder(capsys, tmp_path):
     assert main(["sph", "validate", "--quick", "--out", str(out), "--rheology", "fast"]) == 2
     _one_line_error(capsys, "rheology")
     assert not out.exists()
+
+
+def test_sweep_cases_carry_the_rheology():
+    """A sweep's SPH case names its friction law (a mu(I) case is another case), and the
+    material it runs with is the mu(I) one; a bad value names the sweep key."""
+    from terradyn import models
+    from terradyn.errors import InputError
+    from terradyn.models import sph as sph_model
+
+    m = models.get("sph")
+    base = {"medium": "poppy LP", "quick": True}
+    r0, r1 = m.resolve(dict(base)), m.resolve({**base, "rheology": "mu-i"})
+    assert "rheology" not in r0 and r1["rheology"] == "mu-i"
+    opts = {k: v for k, v in r1.items() if k not in ("name", "medium")}
+    assert sph_model.material("poppy LP", opts).mu_rise > 0
+    with pytest.raises(InputError, match="model.rheology"):
+        m.resolve({**base, "rheology": "fast"})

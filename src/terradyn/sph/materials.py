@@ -192,9 +192,11 @@ class GranularMaterial:
                 "cohesion_Pa": self.cohesion, "dilatancy_deg": self.dilatancy / DEG,
                 "critical_density_kg_m3": self.critical_density,
                 "k0": self.lateral_ratio, "dp_match": self.dp_match,
-                "rheology": "mu-i" if self.mu_rise > 0 else "constant",
-                "mu_rise": self.mu_rise, "inertial_i0": self.inertial_i0 if self.mu_rise > 0 else None,
-                "grain_diameter_m": self.grain_diameter, "grain_density_kg_m3": self.grain_density,
+                # only with mu(I): the description of a rate-independent material (and so the
+                # run keys of its checkpoints) stays what it was before mu(I) existed
+                **({"rheology": "mu-i", "mu_rise": self.mu_rise, "inertial_i0": self.inertial_i0,
+                    "grain_diameter_m": self.grain_diameter,
+                    "grain_density_kg_m3": self.grain_density} if self.mu_rise > 0 else {}),
                 "mobilised_friction_deg": self.mobilised_friction / DEG, "sources": self.sources}
 
 
@@ -299,9 +301,9 @@ def from_medium(medium: str, youngs: float | None = None, poisson: float = 0.3,
         **(dict(mu_rise=JOP2006_MU_RISE, inertial_i0=JOP2006_I0, grain_diameter=m.grain_diameter,
                 grain_density=m.grain_density) if rheology == "mu-i" else {}),
         sources={
-            "rheology": (f"mu(I): rise and I_0 of glass beads, {JOP2006}; elasto-plastic form: "
-                         f"{DUNATUNGA2015}; grain size and density: {LI2013}, Table S1"
-                         if rheology == "mu-i" else "rate-independent friction (Bui et al. 2008)"),
+            **({"rheology": f"mu(I): rise and I_0 of glass beads, {JOP2006}; elasto-plastic "
+                            f"form: {DUNATUNGA2015}; grain size and density: {LI2013}, Table S1"}
+               if rheology == "mu-i" else {}),
             "dilatancy": psi_src,
             "density": f"grain density x volume fraction, {LI2013}, Table S1",
             "friction": src,
