@@ -22,6 +22,7 @@ from __future__ import annotations
 import argparse
 import json
 import platform
+import sys
 import time
 from pathlib import Path
 
@@ -51,7 +52,7 @@ def main() -> None:
         rows.append(row)
         print(json.dumps(row), flush=True)
         atomic_write_text(a.out, json.dumps({
-            "command": "python benchmarks/sph_mu_i.py", "dx_mm": a.dx_mm,
+            "command": "python benchmarks/sph_mu_i.py", "argv": sys.argv[1:], "dx_mm": a.dx_mm,
             "machine": platform.processor() or platform.machine(), "rows": rows}, indent=1))
 
     for m in a.media:
