@@ -225,9 +225,11 @@ def test_leg3d_writes_the_curves_scores_and_figure(monkeypatch, capsys, tmp_path
     assert fig.stat().st_size > 1000
 
 
-@pytest.mark.parametrize("cmd", [["run", "--quick"], ["column", "--quick"], ["plate", "--quick"]])
-def test_rheology_checked_before_the_run(cmd, no_work, capsys):
-    assert main(["sph", *cmd, "--rheology", "viscous"]) == 2
+@pytest.mark.parametrize("cmd", [["run", "--quick"], ["column", "--quick"], ["plate", "--quick"],
+                                 ["legs", "--quick"]])
+def test_rheology_checked_before_the_run(cmd, no_work, capsys, tmp_path):
+    out = ["--outdir", str(tmp_path / "o")] if cmd[0] == "legs" else []
+    assert main(["sph", *cmd, "--rheology", "viscous", *out]) == 2
     _one_line_error(capsys, "rheology", "mu-i")
 
 

@@ -303,6 +303,7 @@ def plate_cmd(medium: str = _MEDIUM, density_kg_m3: Optional[float] = _DENSITY,
 def legs_cmd(omega: list[float] = typer.Option([0.2], help="Angular speeds, rad/s (repeat; the thesis uses 0.2 ... 1.1)."),
              legs: list[str] = typer.Option(["flat", "c", "reverse-c"], "--leg", help="Legs (repeat)."),
              medium: str = _MEDIUM, quick: bool = _QUICK, dx_mm: Optional[float] = _DX,
+             rheology: str = _RHEOLOGY,
              n_theta: int = typer.Option(271, help="Output angles."),
              outdir: Path = typer.Option(Path("results/sph"), "--out", "-o", "--outdir", help="Directory for series, metrics and figures."),
              checkpoint_dir: Optional[Path] = typer.Option(None, help="Directory for checkpoints (resume)."),
@@ -315,6 +316,7 @@ def legs_cmd(omega: list[float] = typer.Option([0.2], help="Angular speeds, rad/
     from ..sph.solver import check_checkpoint
 
     cfg = _config(quick, dx_mm, 0.2, None, Backend(backend).value)
+    mat = _material(medium, None, None, rheology=rheology)
     io.check_writable(outdir, "out", directory=True)
     if checkpoint_dir is not None:
         io.check_writable(checkpoint_dir, "checkpoint-dir", directory=True)
@@ -329,7 +331,7 @@ def legs_cmd(omega: list[float] = typer.Option([0.2], help="Angular speeds, rad/
         ck = checkpoint_dir / f"{tag}.npz" if checkpoint_dir else None
         try:
             with _progress(f"SPH {tag}") as cb:
-                r = validation.rotating_leg(make_leg(name), w, medium, quick=quick, config=cfg,
+                r = validation.rotating_leg(make_leg(name), w, mat, quick=quick, config=cfg,
                                             n_theta=n_theta, progress=cb, checkpoint=ck)
         except SPHInstabilityError as e:
             _unstable(e)
