@@ -261,3 +261,12 @@ def test_sweep_cases_carry_the_rheology():
     assert sph_model.material("poppy LP", opts).mu_rise > 0
     with pytest.raises(InputError, match="model.rheology"):
         m.resolve({**base, "rheology": "fast"})
+
+
+@pytest.mark.parametrize("args, field, part", [
+    (["--channel-width-cm", "0"], "channel-width-cm", "cm"),
+    (["--channel-width-cm", "10", "--wall-friction-deg", "75"], "wall-friction-deg", "deg"),
+    (["--wall-friction-deg", "20"], "wall-friction-deg", "channel-width-cm")])
+def test_column_side_walls_checked_before_the_run(args, field, part, no_work, capsys):
+    assert main(["sph", "column", "--quick", *args]) == 2
+    _one_line_error(capsys, field, part)

@@ -12,7 +12,7 @@ import typer
 
 from . import options as O, sub_app
 
-from ..errors import InputError, in_range, integer, positive
+from ..errors import InputError, integer, positive
 
 Backend = Enum("Backend", {b: b for b in ("cpu", "gpu", "auto")}, type=str)
 
@@ -242,25 +242,22 @@ def column_cmd(aspect: list[float] = typer.Option([0.5, 1.0, 2.0], help="Aspect 
                wall_friction_deg: Optional[float] = _WALL_FRICTION,
                plot: Optional[Path] = typer.Option(None, help="Figure: deposits and run-out vs Lube et al. 2005.")):
     """Scene 2: collapse of 2D granular columns; run-out and final height vs Lube et al. (2005)."""
-    import math
-
-    from .. import io
+    from .. import io, models
+    from ..models import sph as sph_model
     from ..sph import plots, validation
 
     dx = _dx(dx_mm) or (4e-3 if quick else 2e-3)
     for a in aspect:
         positive("aspect", a)
-    if channel_width_cm is not None:
-        positive("channel-width-cm", channel_width_cm, "cm")
-    if wall_friction_deg is not None:
-        if channel_width_cm is None:
-            raise InputError("wall-friction-deg", "has no effect without --channel-width-cm")
-        in_range("wall-friction-deg", wall_friction_deg, 0.0, 60.0, "deg")
+    # the side walls and the friction law through the model's own option checks (as sph run)
+    opts = models.get("sph").check_options({"channel_width_cm": channel_width_cm,
+                                            "wall_friction_deg": wall_friction_deg,
+                                            "rheology": rheology})
+    cfg = sph_model.config(opts)
     io.check_plot(plot)
-    mat = _material(medium, None, None, rheology=rheology)
+    mat = sph_model.material(medium, opts)
     base = 0.06 if quick else 0.1
-    walls = dict(channel_width=channel_width_cm * 1e-2 if channel_width_cm is not None else None,
-                 wall_friction=math.radians(wall_friction_deg) if wall_friction_deg is not None else None)
+    walls = dict(channel_width=cfg.channel_width, wall_friction=cfg.wall_friction)
     rows = []
     with _progress("columns") as cb:
         for k, a in enumerate(aspect):
