@@ -42,7 +42,7 @@ def _simple_shear_friction(mat, p0=-1000.0, rate=1.0, dt=1e-5, steps=20000):
         rho, sxx, szz, sxz, syy = physics.dp_update(
             rho, 0.0, 0.0, rate, 0.0, 0.0, sxx, szz, sxz, syy, dt, mat.shear_modulus,
             mat.bulk_modulus, mat.alpha_phi, mat.k_c, 0.5 * mat.density, 2 * mat.density,
-            0.0, 0.0, *mat.rate_constants)
+            0.0, 0.0, *mat.rate_constants.values())
     p = -0.5 * (sxx + szz)
     return math.degrees(math.asin(math.hypot(0.5 * (sxx - szz), sxz) / p)), syy + p
 

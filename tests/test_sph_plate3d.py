@@ -41,7 +41,7 @@ def test_3d_drucker_prager_reduces_to_the_2d_update_for_plane_strain(medium, dil
     for k in range(len(drho)):
         lxx, lxz, lzx, lzz = L[k]
         rho, sxx, szz, sxz, syy = f2(s2[0], drho[k], lxx, lxz, lzx, lzz, *s2[1:], *consts,
-                                     *mat.rate_constants)
+                                     *mat.rate_constants.values())
         r3 = f3(s3[0], drho[k], lxx, 0.0, lxz, 0.0, 0.0, 0.0, lzx, 0.0, lzz, *s3[1:], *consts)
         want = (rho, sxx, syy, szz, 0.0, sxz, 0.0)
         scale = max(abs(sxx), abs(szz), abs(syy), 1.0)

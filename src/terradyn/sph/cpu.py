@@ -524,7 +524,7 @@ class CPUBackend:
                    av_beta=cfg.av_beta, half_t=s.half_t, gap=s.gap, max_push=0.1 * cfg.dx,
                    vmax_allowed=s.vmax_allowed, side_reach2=s.side_reach ** 2,
                    alpha_psi=mat.alpha_psi, rho_crit=mat.dilation_limit, wall_k=s.wall_k)
-        val.update(zip(("mu_s", "mu_rise", "mu_i0", "mu_dscale"), mat.rate_constants))
+        val.update(mat.rate_constants)
         self.fp = np.array([val[k] for k in FP], dtype=np.float64)
         ival = dict(ncx=s.ncx, ncz=s.ncz, noslip=int(bool(cfg.noslip)),
                     av_boundary=int(bool(cfg.av_boundary)), has_leg=int(leg is not None),

@@ -498,8 +498,7 @@ class GPUBackend:
                         rho_min=float(0.9 * mat.density), rho_max=float(1.1 * mat.density),
                         alpha_psi=float(mat.alpha_psi), rho_crit=float(mat.dilation_limit),
                         rlist=float((2.0 + SKIN) * h), build=build,
-                        **dict(zip(("mu_s", "mu_rise", "mu_i0", "mu_dscale"),
-                                   map(float, mat.rate_constants))))
+                        **mat.rate_constants)
         _k_strain[nb, TPB](self.srt, self.srtk, b.cell_index, b.cell_start, self.S, *self.nb,
                            par)
         self._boundaries(grav, grid, noslip, False)

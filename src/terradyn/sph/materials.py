@@ -124,13 +124,15 @@ class GranularMaterial:
                 positive(name, v, unit)
 
     @property
-    def rate_constants(self) -> tuple:
-        """(mu_s, mu_rise, I_0, d sqrt(rho_s)) of the mu(I) yield (class docstring); mu_rise = 0:
-        rate-independent."""
-        if self.mu_rise <= 0.0:
-            return (math.tan(self.friction), 0.0, 1.0, 0.0)
-        return (math.tan(self.friction), float(self.mu_rise), float(self.inertial_i0),
-                float(self.grain_diameter) * math.sqrt(float(self.grain_density)))
+    def rate_constants(self) -> dict:
+        """The mu(I) constants of the stress update, by the names the kernels take them
+        (:class:`terradyn.sph.physics.StrainPar`): mu_s = tan(phi), mu_rise, mu_i0 = I_0,
+        mu_dscale = d sqrt(rho_s) (class docstring); mu_rise = 0: rate-independent."""
+        on = self.mu_rise > 0.0
+        return {"mu_s": math.tan(self.friction), "mu_rise": float(self.mu_rise) if on else 0.0,
+                "mu_i0": float(self.inertial_i0) if on else 1.0,
+                "mu_dscale": (float(self.grain_diameter) * math.sqrt(float(self.grain_density))
+                              if on else 0.0)}
 
     @property
     def shear_modulus(self) -> float:
