@@ -1243,6 +1243,9 @@ class Solver3D:
             raise InputError("channel-width", "is a setting of the 2D model (its side walls "
                              "are modelled as friction); a 3D scene has none, got "
                              f"{cfg.channel_width!r} m")
+        if mat.mu_rise > 0.0:  # dp_update3 has no rate dependence: refuse, never ignore
+            raise InputError("rheology", "mu(I) ('mu-i') is in the 2D solver only; the 3D solver's "
+                             "friction is rate-independent: use rheology 'constant'")
         nr = len(sc)
         self.nr = nr
         self.h = cfg.h
@@ -1319,9 +1322,6 @@ class Solver3D:
         ux0, uz0 = math.cos(pose0[2]), math.sin(pose0[2])
         self.wn[self.lidx, 0] = self.bn[:, 0] * ux0 - self.bn[:, 1] * uz0
         self.wn[self.lidx, 1] = self.bn[:, 0] * uz0 + self.bn[:, 1] * ux0
-        if mat.mu_rise > 0.0:  # dp_update3 has no rate dependence: refuse, never ignore
-            raise InputError("rheology", "mu(I) ('mu-i') is in the 2D solver only; the 3D solver's "
-                             "friction is rate-independent: use rheology 'constant'")
         gap = (0.25 if cfg.contact_gap is None else cfg.contact_gap) * cfg.dx
         val = dict(h=self.h, dt=self.dt, shear_mod=mat.shear_modulus, bulk_mod=mat.bulk_modulus,
                    alpha_phi=mat.alpha_phi, k_c=mat.k_c, rho_min=0.9 * mat.density,
