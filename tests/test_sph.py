@@ -66,19 +66,63 @@ def test_plane_strain_flow_mobilises_the_materials_friction_angle(medium):
 def test_mu_i_simple_shear_flows_at_jop_friction(rate, p0):
     """mu(I): a particle sheared steadily at gamma_dot under pressure P flows at
     atan(mu_s + (mu_2 - mu_s) / (1 + I_0 / I)), I = gamma_dot d / sqrt(P / rho_s) (Jop et al.
-    2006, analytic); a quasi-static rate (I ~ 5e-6) keeps the static friction angle."""
+    2006, analytic); a quasi-static rate (I ~ 5e-6) keeps the static friction angle. The
+    analytic value is the rigid-plastic limit: the return finds the *plastic* shear rate,
+    which the Jaumann rate's normal-stress terms set apart from the applied rate by
+    O((tau / G)^2), so it is checked at 100 x the preset stiffness (1e-4 deg) and, at the
+    preset one, to 1e-3 deg."""
     from terradyn.sph.materials import JOP2006_I0, JOP2006_MU_RISE
     m = from_medium("3 mm glass CP", rheology="mu-i")
     assert m.friction == MATERIALS["3 mm glass CP"].friction  # the calibration is kept
     inum = rate * m.grain_diameter / math.sqrt(-p0 / m.grain_density)
     mu = math.tan(m.friction) + JOP2006_MU_RISE / (1 + JOP2006_I0 / inum)
-    phi_mob, _ = _simple_shear_friction(m, p0=p0, rate=rate, dt=2.0 / rate / 2e4,
+    stiff = m.with_(youngs=100 * m.youngs)
+    phi_mob, _ = _simple_shear_friction(stiff, p0=p0, rate=rate, dt=2.0 / rate / 2e4,
                                         steps=20000)
     assert phi_mob == pytest.approx(math.degrees(math.atan(mu)), abs=1e-4)
+    phi_preset, _ = _simple_shear_friction(m, p0=p0, rate=rate, dt=2.0 / rate / 2e4,
+                                           steps=20000)
+    assert phi_preset == pytest.approx(math.degrees(math.atan(mu)), abs=1e-3)
     if rate < 1:
         assert phi_mob == pytest.approx(m.friction / DEG, abs=0.01)
     else:
         assert phi_mob > m.friction / DEG + 2.0
+
+
+def test_mu_i_return_solves_the_viscoplastic_consistency():
+    """The implicit mu(I) return: the plastic shear rate g >= 0 makes the returned deviator
+    sqrt(J2) - G dt g equal to the cone's radius at mu(I(g)) (checked against SciPy's brentq
+    on the same equation), the static cone where the trial stress is inside it, and mu stays
+    within [mu_s, mu_s + mu_rise]."""
+    from scipy.optimize import brentq
+
+    m = from_medium("poppy LP", rheology="mu-i")
+    rc = m.rate_constants
+    mu_s, rise, i0, dsc = rc["mu_s"], rc["mu_rise"], rc["mu_i0"], rc["mu_dscale"]
+    rng = np.random.default_rng(3)
+
+    def radius(mu, p, kc):
+        return p * mu / math.sqrt(1 + mu * mu) + kc
+
+    for _ in range(200):
+        p = 10 ** rng.uniform(0, 5)
+        kc = rng.choice([0.0, 50.0])
+        gdt = m.shear_modulus * 10 ** rng.uniform(-7, -3)
+        sj = radius(mu_s, p, kc) * rng.uniform(0.5, 3.0)
+        mu = physics._mu_i_implicit(sj, p, kc, gdt, mu_s, rise, i0, dsc)
+        assert mu_s <= mu <= mu_s + rise
+        if sj <= radius(mu_s, p, kc):
+            assert mu == mu_s
+            continue
+        c = dsc / math.sqrt(p)
+
+        def h(g):
+            inum = c * g
+            return sj - gdt * g - radius(mu_s + rise * inum / (inum + i0), p, kc)
+
+        g_ref = brentq(h, 0.0, sj / gdt, xtol=1e-14, rtol=1e-13)
+        mu_ref = mu_s + rise * c * g_ref / (c * g_ref + i0)
+        assert mu == pytest.approx(mu_ref, rel=1e-9, abs=1e-12)
 
 
 def test_mu_i_material_checks():

@@ -101,6 +101,36 @@ def wendland_w(r, h):
 
 
 @_source
+def _mu_i_implicit(sj, p, k_c, gdt, mu_s, mu_rise, mu_i0, mu_dscale):
+    """mu of the mu(I) cone after a return from the trial deviator sqrt(J2) = ``sj`` at mean
+    pressure ``p`` > 0 (``gdt`` = G dt): the plastic shear rate g >= 0 solves
+    h(g) = sj - G dt g - R(g) = 0, R(g) = p mu / sqrt(1 + mu^2) + k_c the cone's radius at
+    mu = mu(I(g)), I(g) = g mu_dscale / sqrt(p) (the return scales sqrt(J2) down by G dt times
+    the equivalent plastic shear rate sqrt(2 e_p:e_p)). g = 0 (mu_s) where the trial stress is
+    inside the static cone. R is concave and increasing in g, so h is convex and decreasing
+    and Newton's method from g = 0 climbs to the root monotonically, without overshoot."""
+    r_s = p * mu_s / math.sqrt(1.0 + mu_s * mu_s) + k_c
+    if sj <= r_s:
+        return mu_s
+    c = mu_dscale / math.sqrt(p)  # I = c g
+    g = 0.0
+    mu = mu_s
+    for _ in range(50):
+        inum = c * g
+        q = 1.0 / (inum + mu_i0)
+        mu = mu_s + mu_rise * inum * q
+        w = 1.0 / math.sqrt(1.0 + mu * mu)
+        h = sj - gdt * g - (p * mu * w + k_c)
+        dh = -gdt - p * w * w * w * mu_rise * mu_i0 * q * q * c
+        step = -h / dh
+        g += step
+        if step <= 1e-12 * g:
+            break
+    inum = c * g
+    return mu_s + mu_rise * inum / (inum + mu_i0)
+
+
+@_source
 def dp_update(rho, drho, lxx, lxz, lzx, lzz, sxx, szz, sxz, syy, dt, shear_mod, bulk_mod,
               alpha_phi, k_c, rho_min, rho_max, alpha_psi, rho_crit, mu_s, mu_rise, mu_i0,
               mu_dscale):
@@ -121,11 +151,13 @@ def dp_update(rho, drho, lxx, lxz, lzx, lzz, sxx, szz, sxz, syy, dt, shear_mod, 
 
     Rate dependence (``mu_rise`` > 0; :class:`terradyn.sph.materials.GranularMaterial`): the
     cone's friction is that of mu(I) = mu_s + mu_rise I / (I + I_0) (Jop et al. 2006), with
-    I = |gamma_dot| d sqrt(rho_s) / sqrt(P) (``mu_dscale`` = d sqrt(rho_s); |gamma_dot| =
-    sqrt(2 e':e') of this step's strain rate, P the trial mean pressure; I = inf where P <= 0)
-    and the plane-strain match alpha_phi = sin(atan mu) / 3 = mu / (3 sqrt(1 + mu^2)); the
-    tension cut-off keeps the static cone. mu_rise = 0: the rate-independent model,
-    unchanged."""
+    I = gamma_p d sqrt(rho_s) / sqrt(P) (``mu_dscale`` = d sqrt(rho_s); P the trial mean
+    pressure; I = inf where P <= 0) and the plane-strain match alpha_phi = sin(atan mu) / 3 =
+    mu / (3 sqrt(1 + mu^2)). gamma_p is the step's *plastic* shear rate, found implicitly
+    (:func:`_mu_i_implicit`, the elasto-viscoplastic return): an elastic particle keeps the
+    static cone, and particle-scale noise in the total strain rate does not move the cone of
+    a yielding one; in steady shear gamma_p is the applied rate. The tension cut-off keeps the
+    static cone. mu_rise = 0: the rate-independent model, unchanged."""
     rho = min(max(rho + dt * drho, rho_min), rho_max)
     exx = lxx
     ezz = lzz
@@ -155,13 +187,10 @@ def dp_update(rho, drho, lxx, lxz, lzx, lzz, sxx, szz, sxz, syy, dt, shear_mod, 
     dzz = s_zz - m
     dyy = s_yy - m
     j2 = 0.5 * (dxx * dxx + dzz * dzz + dyy * dyy) + s_xz * s_xz
-    if mu_rise > 0.0:  # mu(I): the cone's friction from the inertial number
-        exd = exx - third
-        ezd = ezz - third
-        gd = math.sqrt(2.0 * (exd * exd + ezd * ezd + third * third + 2.0 * exz * exz))
+    if mu_rise > 0.0:  # mu(I): the cone's friction from the plastic shear rate
         if m < 0.0:
-            inum = gd * mu_dscale / math.sqrt(-m)
-            mu = mu_s + mu_rise * inum / (inum + mu_i0)
+            mu = _mu_i_implicit(math.sqrt(j2), -m, k_c, dt * shear_mod, mu_s, mu_rise, mu_i0,
+                                mu_dscale)
         else:
             mu = mu_s + mu_rise
         alpha_phi = mu / (3.0 * math.sqrt(1.0 + mu * mu))
