@@ -64,6 +64,8 @@ Units SI; world z up; MuJoCo quaternions are (w, x, y, z) like :mod:`terradyn.rf
 """
 from __future__ import annotations
 
+from .._jitcache import bind_to_sources as _bind_cache
+
 import os
 
 os.environ.setdefault("MUJOCO_GL", "egl")  # offscreen GL; read when mujoco is first imported
@@ -852,3 +854,7 @@ def energy(model, data) -> float:
 
 
 __all__ = ["GranularTerrain", "body_surface", "energy", "max_generic_stress", "mujoco_c_functions", "GEOM_TYPES"]
+
+# Cached kernels above use jitted code and constants of other modules: make their on-disk
+# cache stale when those change too (terradyn._jitcache; Numba checks only this file).
+_bind_cache(globals(), 'terradyn.rft3d.engine', 'terradyn.rft3d.model')

@@ -34,6 +34,8 @@ only, so the list can follow a force schema.
 """
 from __future__ import annotations
 
+from .._jitcache import bind_to_sources as _bind_cache
+
 import math
 from dataclasses import dataclass, field
 from typing import Iterable, Sequence
@@ -1357,3 +1359,7 @@ def json_channels(filt: TerrainFilter) -> str:
 
     return json.dumps([{"name": c.name, "weights": c.weights, "noise": c.noise, "bias_std": c.bias_std,
                         "units": c.units} for c in filt.channels])
+
+# Cached kernels above use jitted code and constants of other modules: make their on-disk
+# cache stale when those change too (terradyn._jitcache; Numba checks only this file).
+_bind_cache(globals(), 'terradyn.dddas.filter')

@@ -23,6 +23,8 @@ Two paths compute the same thing:
 """
 from __future__ import annotations
 
+from .._jitcache import bind_to_sources as _bind_cache
+
 import numba
 import numpy as np
 
@@ -449,3 +451,7 @@ class Evaluator:
                     np.asarray(W, dtype=float), X if point is None else np.asarray(point, dtype=float),
                     float(surface), self._T, self._out)
         return self._out[0].astype(float)
+
+# Cached kernels above use jitted code and constants of other modules: make their on-disk
+# cache stale when those change too (terradyn._jitcache; Numba checks only this file).
+_bind_cache(globals(), 'terradyn.rft3d.model')

@@ -4,6 +4,8 @@ physics of :mod:`terradyn.sph.physics`, a whole block of steps in one compiled c
 """
 from __future__ import annotations
 
+from .._jitcache import bind_to_sources as _bind_cache
+
 import math
 
 import numba
@@ -606,3 +608,7 @@ class CPUBackend:
 
     def to_host(self) -> None:
         """The solver's arrays are the state: nothing to copy."""
+
+# Cached kernels above use jitted code and constants of other modules: make their on-disk
+# cache stale when those change too (terradyn._jitcache; Numba checks only this file).
+_bind_cache(globals(), 'terradyn.sph.physics', 'terradyn.sph.neighbours', 'terradyn.sph.source', 'terradyn.sph.state')

@@ -9,6 +9,8 @@ the CPU here and for the GPU by :mod:`terradyn.sph.gpu`; :func:`bin_particles`,
 """
 from __future__ import annotations
 
+from .._jitcache import bind_to_sources as _bind_cache
+
 import math
 
 import numba
@@ -236,3 +238,7 @@ def bin_particles(x, z, xmin, zmin, inv_cell, ncx, ncz, cell_start, cell_index):
         c = cell_of[i]
         cell_index[fill[c]] = i
         fill[c] += 1
+
+# Cached kernels above use jitted code and constants of other modules: make their on-disk
+# cache stale when those change too (terradyn._jitcache; Numba checks only this file).
+_bind_cache(globals(), 'terradyn.sph.source', 'terradyn.sph.state')

@@ -47,6 +47,8 @@ the studies (docs/sph.md).
 """
 from __future__ import annotations
 
+from .._jitcache import bind_to_sources as _bind_cache
+
 import math
 import time
 from dataclasses import dataclass, field
@@ -1838,3 +1840,7 @@ def shape_factor(length: float, width: float, friction: float) -> float:
     in_range("friction", friction, 0.0, math.pi / 2, "rad")
     b, l_ = sorted((length, width))
     return 1.0 + (b / l_) * math.tan(friction)
+
+# Cached kernels above use jitted code and constants of other modules: make their on-disk
+# cache stale when those change too (terradyn._jitcache; Numba checks only this file).
+_bind_cache(globals(), 'terradyn.sph.neighbours', 'terradyn.sph.state')
