@@ -477,6 +477,23 @@ def test_side_walls_hold_a_column_up_and_shorten_its_run_out():
         SPHConfig(channel_width=0.1, wall_friction=2.0)
 
 
+@pytest.mark.parametrize("angle_deg", [15.0, 32.0])
+def test_a_slope_stands_below_the_friction_angle_and_fails_above(angle_deg):
+    """Infinite-slope limit of a Coulomb material: a wedge of 3 mm glass CP (phi = 24.1 deg)
+    at 15 deg keeps its shape (the top moves by under a quarter of a particle spacing: the
+    creep while its shear stresses build), one at 32 deg slides, and comes to rest with a
+    flank no steeper than phi."""
+    dx = 4e-3
+    r = validation.slope_stability(math.radians(angle_deg), dx=dx)
+    assert r["friction_deg"] == pytest.approx(24.073, abs=0.01)
+    if angle_deg < r["friction_deg"]:
+        assert r["top_drop"] < 0.25 * dx and r["max_surface_drop"] < 0.25 * dx
+    else:
+        assert r["top_drop"] > 2 * dx
+        assert r["final_slope_deg"] < r["friction_deg"]
+        assert r["max_speed"] < 0.01
+
+
 def test_mu_i_column_runs_out_less_and_comes_to_rest():
     """mu(I) (Jop et al. 2006) in Lube et al. 2005's channel, a = 1, 4 mm: the flowing grains
     are slowed, so the run-out is shorter than with rate-independent friction (docs/sph.md:

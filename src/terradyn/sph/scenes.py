@@ -123,6 +123,34 @@ def column_scene(aspect: float, base: float = 0.05, dx: float = 2.5e-3,
                  depth_scale=max(H, base))
 
 
+def slope_scene(angle: float, height: float = 0.06, dx: float = 4e-3,
+                medium: str | GranularMaterial = "3 mm glass CP",
+                config: SPHConfig | None = None, **cfg_kw) -> Scene:
+    """A 2D wedge of granular material against a left wall on a rough floor: free surface
+    z = height - x tan(angle) (``angle`` in rad, 0 < angle < 80 deg), geostatic stress from the
+    local depth below it (not an equilibrium state of a slope: a slope near the friction angle
+    creeps a little while its shear stresses build)."""
+    from ..errors import in_range
+
+    in_range("angle", angle, 1e-3, math.radians(80.0), "rad")
+    positive("height", height, "m")
+    mat = _material(medium)
+    cfg = config or SPHConfig(dx=dx, **cfg_kw)
+    dx = cfg.dx
+    height = snap(height, dx)
+    foot = snap(height / math.tan(angle) + dx, dx)
+    sx, sz = lattice(0.0, foot, 0.0, height, dx)
+    keep = sz < height - sx * math.tan(angle)
+    sx, sz = sx[keep], sz[keep]
+    run = snap(3.0 * foot, dx)
+    wx, wz = container_walls(0.0, run, 0.0, height + 4 * dx, dx, cfg.wall_layers, right=False,
+                             x_floor_end=run)
+    p = _assemble([(sx, sz, SOIL), (wx, wz, WALL)], mat, dx)
+    _set_stress(p, mat, lambda x: height - x * math.tan(angle), "geostatic")
+    return Scene(p, mat, cfg, meta={"scene": "slope", "angle_rad": angle, "height_m": height,
+                                    "foot_m": foot}, depth_scale=height)
+
+
 # ------------------------------------------------------------------------------------ legs
 def _centre_line(leg: Leg, dx: float):
     """Points (m, 2) and unit tangents along the leg's centre line, hip to tip, spacing ~dx."""

@@ -18,7 +18,7 @@ from ..media import MEDIA, stress_model
 from ..motion import PlanarMotion, Rotation
 from ..units import CM, DEG, G, N_PER_CM3
 from .materials import GranularMaterial, material as _material
-from .scenes import bed_scene, column_scene
+from .scenes import bed_scene, column_scene, slope_scene
 from .solver import run
 from .state import SPHConfig
 
@@ -136,6 +136,42 @@ def column_collapse(aspect: float, medium="3 mm glass CP", *, base=0.06, dx=4e-3
             "duration": T}
 
 
+def slope_stability(angle: float, medium="3 mm glass CP", *, height=0.06, dx=4e-3,
+                    duration=1.5, channel_width: float | None = None) -> dict:
+    """A wedge at ``angle`` (rad) left to stand for ``duration`` s: a Coulomb material keeps a
+    slope below its friction angle and fails above it (the infinite-slope limit tan(angle) =
+    tan(phi)). Returns the drop of the top at the wall (m), the final mean slope of the flank
+    (deg, from the top at the wall to the toe), the largest surface displacement measure
+    (the largest drop of the surface height over x, m) and the final speeds."""
+    mat = _material(medium)
+    cfg = SPHConfig(dx=dx, settle_time=0.0, channel_width=channel_width)
+    sc = slope_scene(angle, height=height, medium=mat, config=cfg)
+    height = sc.meta["height_m"]
+    x0 = sc.particles.x[sc.particles.kind == 0]
+    z0 = sc.particles.z[sc.particles.kind == 0]
+    res = run(sc, float(duration))
+    s = res.solver
+    x = s.x[s.sidx]
+    z = s.z[s.sidx]
+    bins = np.arange(0.0, 3.0 * sc.meta["foot_m"] + 2 * dx, 2 * dx)
+
+    def surface(xs, zs):
+        i = np.digitize(xs, bins) - 1
+        out = np.zeros(len(bins) - 1)
+        np.maximum.at(out, np.clip(i, 0, len(out) - 1), zs + 0.5 * dx)
+        return out
+
+    before, after = surface(x0, z0), surface(x, z)
+    xs = np.sort(x)
+    gap = np.flatnonzero(np.diff(xs) > 2 * dx)
+    toe = float(xs[gap[0]] if len(gap) else xs[-1]) + 0.5 * dx
+    top = float(after[0])
+    return {"angle_deg": math.degrees(angle), "friction_deg": math.degrees(mat.friction),
+            "top_drop": height - top, "max_surface_drop": float(np.max(before - after)),
+            "final_slope_deg": math.degrees(math.atan2(top, toe)), "toe": toe,
+            "height": height, "max_speed": float(np.hypot(s.vx[s.sidx], s.vz[s.sidx]).max())}
+
+
 # ----------------------------------------------------------------------------- 3. plate push
 def plate_push(medium="3 mm glass CP", *, length=3.81 * CM, width=2.54 * CM, thickness=0.64 * CM,
                speed=0.01, depth=0.05, dx=2.5e-3, n_samples=51, config: SPHConfig | None = None,
@@ -220,5 +256,5 @@ def alpha_z_plate_measured(medium: str) -> float:
     return MEDIA[medium].alpha_z_plate
 
 
-__all__ = ["bed_at_rest", "column_collapse", "plate_push", "rotating_leg", "compare_with_rft",
+__all__ = ["bed_at_rest", "column_collapse", "slope_stability", "plate_push", "rotating_leg", "compare_with_rft",
            "lube2005", "LUBE2005", "N_PER_CM3"]
