@@ -18,8 +18,9 @@ first differs from the second, they are in the rest of the scene.
     python benchmarks/sph_locality.py [--rig MEDIUM=FILE ...] [--legs FILE]
 
 Inputs: the full-grid rig results (default ``benchmarks/results/sph_rig_<medium>.json``) and
-the SPH leg peaks of ``benchmarks/results/sph_validate_legs.json`` (``terradyn sph validate
---scene legs``). Writes ``benchmarks/results/sph_locality.json``. RFT only: seconds.
+the SPH leg peaks of ``benchmarks/results/sph_legs_single_runs.json`` (single runs of
+``terradyn sph validate --scene legs``, the numbers docs/sph.md quotes; ``--legs
+benchmarks/results/sph_validate_legs.json`` takes the means of three runs). Writes ``benchmarks/results/sph_locality.json``. RFT only: seconds.
 """
 from __future__ import annotations
 
@@ -56,7 +57,7 @@ def sph_peaks(path: Path) -> dict:
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--rig", nargs="*", default=[], help="MEDIUM=FILE (a full-grid rig result)")
-    ap.add_argument("--legs", type=Path, default=RES / "sph_validate_legs.json")
+    ap.add_argument("--legs", type=Path, default=RES / "sph_legs_single_runs.json")
     ap.add_argument("--out", type=Path, default=RES / "sph_locality.json")
     a = ap.parse_args()
     rigs = {m: RES / f"sph_rig_{m.replace(' ', '_')}.json" for m in MEDIA}

@@ -581,7 +581,7 @@ def test_leg_intrusion_lift_and_thrust_match_rft_in_magnitude(short_intrusion):
     # converged model (docs/sph.md, Convergence: flat-leg lift -18 % from 4 to 2.5 mm) and
     # RFT under-predicts the flat leg's measured lift (poppy LP: 2.8 against 4.2 N): the lift
     # ratio is ~3.2 here with the plate-calibrated 24.1 deg (~2.2 with the former 21 deg and
-    # match); at the production resolution in poppy LP it is 2.0 (sph_validate_legs.json)
+    # match); at the production resolution in poppy LP it is 2.0 (sph_legs_single_runs.json)
     assert 0.5 < sph_fz / rft_fz < 4.0
     assert 0.5 < sph_fx / rft_fx < 3.0
     # forces grow as the leg goes in

@@ -233,6 +233,22 @@ def test_leg_realizations_average_the_curves_of_runs_started_10_nm_apart(monkeyp
         suite.validate(scenes=("legs",), realizations=21)
 
 
+def test_validate_averages_three_runs_unless_quick_or_told(monkeypatch):
+    # the full form compares the mean of three runs with the measured trial means; --quick one run
+    seen = []
+
+    def fake(name, medium, *, omega, dx, realizations):
+        seen.append(realizations)
+        raise StopIteration  # no leg is run: only the count handed down matters
+
+    monkeypatch.setattr(suite, "leg_vs_measured", fake)
+    for kw, want in (({}, 3), ({"quick": True}, 1), ({"realizations": 2}, 2),
+                     ({"quick": True, "realizations": 4}, 4)):
+        with pytest.raises(StopIteration):
+            suite.validate(scenes=("legs",), media=["poppy LP"], **kw)
+        assert seen[-1] == want, kw
+
+
 def test_validate_cli_refuses_bad_realizations(tmp_path, capsys):
     from terradyn.cli import main
 
