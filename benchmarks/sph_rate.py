@@ -11,7 +11,7 @@ alpha and with the ones given, side by side: if the speed effect is the viscosit
 shrinks with alpha.
 
     NUMBA_NUM_THREADS=1 python benchmarks/sph_rate.py [--medium "poppy LP"] [--dx-mm 4]
-        [--leg flat] [--omega 0.2 1.1] [--av-alpha 0.1 0.03 0]
+        [--leg flat] [--omega 0.2 1.1] [--av-alpha 0.1 0.03 0] [--plate] [--realizations 1]
 
 Writes ``benchmarks/results/sph_rate.json`` after every run; finished runs are skipped on a
 rerun (interrupt and resume). A study: wall times are as run.
@@ -42,10 +42,10 @@ def main() -> None:
     from terradyn.io import atomic_write_text
     from terradyn.sph import SPHConfig
     from terradyn.sph.calibration import plate_slope
-    from terradyn.units import N_PER_CM3
     from terradyn.sph.materials import MATERIALS
     from terradyn.sph.state import SPHInstabilityError
     from terradyn.sph.suite import leg_vs_measured
+    from terradyn.units import N_PER_CM3
 
     res = json.loads(OUT.read_text()) if OUT.exists() else {
         "machine": platform.platform(), "command": "python benchmarks/sph_rate.py", "runs": {}}
@@ -67,19 +67,18 @@ def main() -> None:
             if key in res["runs"]:
                 continue
             t0 = time.perf_counter()
+            row = {"leg": a.leg, "medium": a.medium, "dx_mm": a.dx_mm, "omega": om, "av_alpha": av}
             try:
                 r = leg_vs_measured(a.leg, MATERIALS[a.medium], omega=om, dx=cfg.dx, config=cfg,
                                     realizations=a.realizations)
-                row = {"leg": a.leg, "medium": a.medium, "dx_mm": a.dx_mm, "omega": om, "av_alpha": av,
-                       "realizations": a.realizations, "peaks_runs_lift_N": r["Fz"]["peaks_runs"],
-                       "peaks_runs_thrust_N": r["Fx"]["peaks_runs"],
-                       "peak_lift_N": r["Fz"]["peak_sph"], "peak_thrust_N": r["Fx"]["peak_sph"],
-                       "rms_lift_N": r["Fz"]["rms_sph"], "rms_thrust_N": r["Fx"]["rms_sph"],
-                       "measured_peak_lift_N": r["Fz"]["peak_measured"],
-                       "measured_peak_thrust_N": r["Fx"]["peak_measured"]}
+                row |= {"realizations": a.realizations, "peaks_runs_lift_N": r["Fz"]["peaks_runs"],
+                        "peaks_runs_thrust_N": r["Fx"]["peaks_runs"],
+                        "peak_lift_N": r["Fz"]["peak_sph"], "peak_thrust_N": r["Fx"]["peak_sph"],
+                        "rms_lift_N": r["Fz"]["rms_sph"], "rms_thrust_N": r["Fx"]["rms_sph"],
+                        "measured_peak_lift_N": r["Fz"]["peak_measured"],
+                        "measured_peak_thrust_N": r["Fx"]["peak_measured"]}
             except SPHInstabilityError as e:
-                row = {"leg": a.leg, "medium": a.medium, "dx_mm": a.dx_mm, "omega": om, "av_alpha": av,
-                       "unstable": str(e)}
+                row["unstable"] = str(e)
             row["wall_s"] = round(time.perf_counter() - t0, 1)
             res["runs"][key] = row
             atomic_write_text(OUT, json.dumps(res, indent=1) + "\n")
