@@ -4,12 +4,14 @@ spacings, with the change between successive resolutions.
 
     python benchmarks/sph_convergence.py [--medium "poppy LP"] [--dx-mm 2 2.5 3 4]
         [--youngs-mpa 0.25] [--omega 1.1] [--realizations 2] (plate runs; legs: the mean curve of that many runs) [--threads 1]
-        [--scenes plate flat c reverse-c] [--dp-match plane-strain|bui2008]
+        [--scenes plate flat c reverse-c] [--dp-match plane-strain|bui2008] [--store .sph-runs]
 (the medium's preset material: its shipped plate calibration where there is one)
 
 Writes benchmarks/results/sph_convergence.json after every run (finished runs are kept and
 skipped on a rerun, so the study can be interrupted and resumed; several studies may run at
-once: each merges its runs into the file under a lock). A study, not a timing
+once: each merges its runs into the file under a lock). Each leg run is also kept in --store
+(``terradyn.sph.suite.leg_run``; git ignores it): a rerun with more --realizations runs only
+the new ones, and an interrupted leg run resumes from its checkpoint. A study, not a timing
 benchmark: wall times are recorded as run, on whatever else the machine was doing."""
 from __future__ import annotations
 
@@ -79,6 +81,8 @@ def main() -> None:
     ap.add_argument("--dp-match", default="plane-strain", choices=["plane-strain", "bui2008"],
                     help="Drucker-Prager match to Mohr-Coulomb (terradyn.sph.materials)")
     ap.add_argument("--scenes", nargs="+", default=["plate", *LEGS], choices=["plate", *LEGS])
+    ap.add_argument("--store", type=Path, default=Path(__file__).parent.parent / ".sph-runs",
+                    help="directory of the stored leg runs (default: .sph-runs in the repository)")
     a = ap.parse_args()
     os.environ["NUMBA_NUM_THREADS"] = str(a.threads)  # before numba is imported
 
@@ -114,7 +118,8 @@ def main() -> None:
                               "intercept_kPa": round(r["intercept_Pa"] / 1e3, 3),
                               "measured_N_cm3": alpha_z_plate_measured(a.medium) / N_PER_CM3}
             else:
-                r = leg_vs_measured(scene, mat, omega=a.omega, config=cfg, realizations=a.realizations)
+                r = leg_vs_measured(scene, mat, omega=a.omega, config=cfg, realizations=a.realizations,
+                                    store=a.store)
                 val = base | {"realizations": r["realizations"]} | {
                     c: {k: (round(v, 4) if isinstance(v, float) else [round(x, 4) for x in v])
                         for k, v in r[c].items() if isinstance(v, float) or k == "peaks_runs"}

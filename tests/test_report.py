@@ -170,6 +170,7 @@ def test_full_tier_judges_a_fresh_validation_run(tmp_path, monkeypatch):
     plt.close(fig)
     monkeypatch.setattr(suite, "validate", fake_validate)
     rep = reproduce(tmp_path / "r", "full", parts=["sph"])
+    assert calls[0]["store"].is_relative_to(tmp_path / "r" / "parts")  # leg runs kept: an interrupted run resumes
     (card,) = rep["parts"][0]["cards"]
     assert card["id"] == "sph-bed" and card["figures"] == ["bed.png"]
     assert card["claims"][0]["verdict"] == "differs"  # 1.3 is not within 5 % of 1: the stored "pass" is not trusted

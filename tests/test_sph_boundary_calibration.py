@@ -233,11 +233,46 @@ def test_leg_realizations_average_the_curves_of_runs_started_10_nm_apart(monkeyp
         suite.validate(scenes=("legs",), realizations=21)
 
 
+def test_leg_runs_are_stored_and_read_back_not_rerun(monkeypatch, tmp_path):
+    # an interrupted study (validate, the convergence benchmark) keeps each finished leg run;
+    # a rerun with the same inputs reads it, with more realizations it runs only the new ones,
+    # with other inputs it runs afresh, and a foreign file under a run's name is refused
+    import terradyn as td
+    from terradyn.sph import api
+
+    calls = []
+
+    def fake(leg, motion, mat, config=None, progress=None, checkpoint=None):
+        calls.append((motion.hip_height, checkpoint))
+        ds = td.rft.simulate(leg, motion, td.stress_model(mat.name, "table", interp="linear"))
+        ds["Fz"] = ds["Fz"] * (1.0 + 0.1 * len(calls))  # each run different
+        return ds
+
+    monkeypatch.setattr(api, "simulate", fake)
+    store = tmp_path / "runs"
+    a = suite.leg_vs_measured("flat", "poppy LP", dx=4e-3, realizations=2, store=store)
+    first = sorted(store.glob("leg-flat-*.nc"))
+    assert len(calls) == 2 and a["stored"] == 0 and len(first) == 2
+    assert all(ck is not None and ck.parent == store for _, ck in calls)  # resumable while running
+    b = suite.leg_vs_measured("flat", "poppy LP", dx=4e-3, realizations=2, store=store)
+    assert len(calls) == 2 and b["stored"] == 2
+    assert b["Fz"]["peaks_runs"] == pytest.approx(a["Fz"]["peaks_runs"], rel=1e-12)
+    c = suite.leg_vs_measured("flat", "poppy LP", dx=4e-3, realizations=3, store=store)
+    assert len(calls) == 3 and c["stored"] == 2 and c["Fz"]["peaks_runs"][:2] == pytest.approx(a["Fz"]["peaks_runs"])
+    suite.leg_vs_measured("flat", "poppy LP", dx=4e-3, omega=0.5, store=store)  # other inputs: a new run
+    assert len(calls) == 4
+    victim = first[1]
+    victim.write_text("not a run")
+    with pytest.raises(InputError, match="store"):
+        suite.leg_vs_measured("flat", "poppy LP", dx=4e-3, realizations=2, store=store)
+    assert victim.read_text() == "not a run"  # refused, never overwritten
+
+
 def test_validate_averages_three_runs_unless_quick_or_told(monkeypatch):
     # the full form compares the mean of three runs with the measured trial means; --quick one run
     seen = []
 
-    def fake(name, medium, *, omega, dx, realizations):
+    def fake(name, medium, *, omega, dx, realizations, store=None):
         seen.append(realizations)
         raise StopIteration  # no leg is run: only the count handed down matters
 
@@ -286,3 +321,19 @@ def test_rig_table_needs_the_full_grid():
     betas, gammas = suite.rig_grid(False)
     with pytest.raises(InputError, match="rig"):
         suite.rig_table({"beta": betas, "gamma": gammas, "alpha_z": z, "alpha_x": z})
+
+
+def test_validate_cli_keeps_leg_runs_in_out_runs(tmp_path, monkeypatch):
+    # `sph validate --out DIR` hands DIR/runs down as the leg-run store: rerunning the same
+    # command after an interruption reads the finished runs (test above) instead of redoing hours
+    from terradyn.cli import main
+
+    seen = {}
+
+    def fake(**kw):
+        seen.update(kw)
+        return {"checks": [], "details": {}, "settings": {}}
+
+    monkeypatch.setattr(suite, "validate", fake)
+    assert main(["sph", "validate", "--scene", "legs", "--out", str(tmp_path / "v")]) == 0
+    assert seen["store"] == tmp_path / "v" / "runs"

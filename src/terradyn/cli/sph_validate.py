@@ -108,6 +108,10 @@ def validate_cmd(
     """Run the SPH validation scenes and compare with measurements: validation.json (quantity,
     ours, reference, source, difference, verdict) and figures in OUT.
 
+    Each finished leg run is kept in OUT/runs (the longest part: hours at the production
+    resolution); rerunning the same command after an interruption reads those and resumes
+    the run it was in from its checkpoint.
+
     Exit code 0 whether checks pass or fail (the JSON says which); 2 for bad input.
     """
     from ..errors import InputError, choice, in_range
@@ -132,7 +136,8 @@ def validate_cmd(
     out.mkdir(parents=True, exist_ok=True)
     res = suite.validate(quick=quick, scenes=tuple(scene) or suite.SCENES, media=medium or None,
                          dx=dx, omega=omega, progress=lambda m: err(f"[dim]{m}[/]"),
-                         figures_dir=out, realizations=realizations, rheology=rheology)
+                         figures_dir=out, realizations=realizations, rheology=rheology,
+                         store=out / "runs")
     res["summary"] = suite.summary(res)
     _atomic_json(out / "validation.json", res)
     for c in res["checks"]:

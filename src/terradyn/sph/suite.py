@@ -209,7 +209,59 @@ def check_realizations(n) -> int:
     return k
 
 
-def leg_vs_measured(name: str, medium, *, omega=1.1, dx=4e-3, config=None, progress=None, realizations: int = 1):
+#: Version of the stored leg runs (:func:`leg_run`): raise it when a change of the code
+#: changes a run's forces, so that runs stored before are recomputed, not reused.
+RUN_STORE_VERSION = 1
+
+
+def leg_run(name: str, motion: Rotation, mat, config, *, store=None, progress=None):
+    """One SPH run of the leg ``name`` (flat, c or reverse-c) with ``motion`` in the material
+    ``mat`` (a :class:`~terradyn.sph.materials.GranularMaterial`): its force series.
+
+    ``store``: a directory, or None. With a directory a finished run is kept there
+    (``leg-NAME-KEY.nc``, KEY a hash of everything that defines the run: leg, motion,
+    material, numerical settings, :data:`RUN_STORE_VERSION`) and a later call with the same
+    inputs reads it instead of running again; while it runs, a checkpoint beside it
+    (``.leg-NAME-KEY.ckpt.npz``, every minute) lets an interrupted run resume where it stopped.
+    A file under that name that is not this run's is refused (:class:`InputError` on
+    ``store``), never overwritten. Returns (series, True if it was read from the store)."""
+    import hashlib
+    import json
+    from dataclasses import asdict
+    from pathlib import Path
+
+    import xarray as xr
+
+    from .. import io
+    from .api import simulate
+
+    leg = make_leg(name)
+    if store is None:
+        return simulate(leg, motion, mat, config=config, progress=progress), False
+    store = Path(store)
+    spec = {"leg": name, "motion": asdict(motion), "material": mat.describe(),
+            "config": config.run_items(), "version": RUN_STORE_VERSION}
+    key = hashlib.sha256(json.dumps(spec, sort_keys=True, default=str).encode()).hexdigest()[:16]
+    path = store / f"leg-{name}-{key}.nc"
+    if path.exists():
+        try:
+            ds = xr.load_dataset(path, engine="h5netcdf")
+        except Exception:  # noqa: BLE001 - any unreadable file is "not ours"
+            ds = None
+        if ds is None or ds.attrs.get("terradyn_run_key") != key:
+            raise InputError("store", f"{path} exists and is not a stored run of this leg test: "
+                                      "remove it or choose another directory")
+        return ds, True
+    io.check_writable(store, "store", directory=True)
+    ds = simulate(leg, motion, mat, config=config, progress=progress,
+                  checkpoint=store / f".leg-{name}-{key}.ckpt.npz")
+    ds = ds.assign_attrs(terradyn_run_key=key, terradyn_run_spec=json.dumps(spec, sort_keys=True, default=str))
+    io.write_netcdf(ds, path)
+    return ds, False
+
+
+def leg_vs_measured(name: str, medium, *, omega=1.1, dx=4e-3, config=None, progress=None, realizations: int = 1,
+                    store=None):
     """One leg in the rotating-leg test (hip 2 cm, -135..135 deg) in SPH, with RFT (the
     medium's measured grid, linear) and Li 2013 Fig. S5's measured curve: peaks (N) and RMS
     differences from the measurement over the measured angles (N).
@@ -219,9 +271,10 @@ def leg_vs_measured(name: str, medium, *, omega=1.1, dx=4e-3, config=None, progr
     the plate test); the SPH curve is then the mean of the runs (the measured curves are means
     over trials, so the peak of the mean curve is what compares), and ``peaks_runs`` and
     ``peak_sem`` give each run's peak and the standard error of the mean curve's peak from the
-    runs' scatter."""
+    runs' scatter. ``store``: a directory where each finished run is kept and from which a
+    rerun reads it (:func:`leg_run`): an interrupted study loses at most the run in progress,
+    and that one resumes from its checkpoint; ``stored`` in the result counts the runs read."""
     from ..rft import simulate as rft_simulate
-    from .api import simulate
     from .materials import material
     from .state import SPHConfig
 
@@ -234,8 +287,9 @@ def leg_vs_measured(name: str, medium, *, omega=1.1, dx=4e-3, config=None, progr
                         theta_end=135 * DEG, n_theta=271)
 
     leg = make_leg(name)
-    runs = [simulate(leg, motion(j), mat, config=config or SPHConfig(dx=dx), progress=progress)
-            for j in range(n_real)]
+    cfg = config or SPHConfig(dx=dx)
+    got = [leg_run(name, motion(j), mat, cfg, store=store, progress=progress) for j in range(n_real)]
+    runs = [r for r, _ in got]
     sph = runs[0].copy()
     for comp in ("Fx", "Fz", "torque"):
         if comp in sph:
@@ -243,7 +297,7 @@ def leg_vs_measured(name: str, medium, *, omega=1.1, dx=4e-3, config=None, progr
     if n_real > 1:
         sph.attrs["realizations"] = n_real
     rft = rft_simulate(leg, motion(), stress_model(mat.name, "table", interp="linear"))
-    out = {"sph": sph, "rft": rft, "realizations": n_real}
+    out = {"sph": sph, "rft": rft, "realizations": n_real, "stored": sum(k for _, k in got)}
     for comp in ("Fx", "Fz"):
         e = exp[(exp.medium == mat.name) & (exp.leg == name) & (exp.force == comp)]
         th, y = e.theta_deg.values, e.force_N.values
@@ -262,7 +316,8 @@ def leg_vs_measured(name: str, medium, *, omega=1.1, dx=4e-3, config=None, progr
 
 # ------------------------------------------------------------------------------- the run
 def validate(*, quick=False, scenes=SCENES, media=None, dx=None, omega=1.1, progress=None,
-             figures_dir=None, realizations: int | None = None, rheology: str = "constant") -> dict:
+             figures_dir=None, realizations: int | None = None, rheology: str = "constant",
+             store=None) -> dict:
     """Run the scenes; returns {"checks": [Check.describe()...], "details": {...}}. ``quick``:
     4 mm particles, columns a = 1 only, the rig's 3 x 5 subset, the flat leg only.
     ``realizations``: runs per leg test, averaged (:func:`leg_vs_measured`; None: 3, or 1 when
@@ -270,7 +325,8 @@ def validate(*, quick=False, scenes=SCENES, media=None, dx=None, omega=1.1, prog
     peak of the mean curve, docs/sph.md "Convergence"). ``rheology``:
     "constant" (rate-independent friction, the model's default) or "mu-i" (Jop et al. 2006's
     mu(I) on top of each medium's calibrated friction angle, :func:`from_medium`) for the
-    column, plate, rig and leg scenes."""
+    column, plate, rig and leg scenes. ``store``: a directory for the leg runs
+    (:func:`leg_run`): a rerun reads the finished ones and resumes the one it was in."""
     from . import plots, validation
     from .materials import MATERIALS, RHEOLOGIES, from_medium
 
@@ -370,7 +426,9 @@ def validate(*, quick=False, scenes=SCENES, media=None, dx=None, omega=1.1, prog
             for leg in (("flat",) if quick else LEGS):
                 say(f"{leg} leg, {m}")
                 r = leg_vs_measured(leg, material(m), omega=omega, dx=dx,
-                                    realizations=realizations)
+                                    realizations=realizations, store=store)
+                if r["stored"]:
+                    say(f"{leg} leg, {m}: {r['stored']} of {r['realizations']} runs read from {store}")
                 details.setdefault("legs", {})[f"{leg} leg, {m}"] = {
                     "realizations": r["realizations"],
                     **{f"{c}_peaks_runs_N": r[c]["peaks_runs"] for c in ("Fz", "Fx")},
@@ -400,5 +458,5 @@ def summary(result: dict) -> dict:
     return {"pass": v.count("pass"), "fail": v.count("fail"), "total": len(v)}
 
 
-__all__ = ["validate", "plate_rig", "rig_point", "leg_vs_measured", "measured_legs", "SCENES",
+__all__ = ["validate", "plate_rig", "rig_point", "leg_vs_measured", "leg_run", "measured_legs", "SCENES",
            "summary"]
