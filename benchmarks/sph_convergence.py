@@ -5,13 +5,17 @@ spacings, with the change between successive resolutions.
     python benchmarks/sph_convergence.py [--medium "poppy LP"] [--dx-mm 2 2.5 3 4]
         [--youngs-mpa 0.25] [--omega 1.1] [--realizations 2] (plate runs; legs: the mean curve of that many runs) [--threads 1]
         [--scenes plate flat c reverse-c] [--dp-match plane-strain|bui2008] [--store .sph-runs]
+    python benchmarks/sph_convergence.py --summarize   (recompute the changes and extrapolations)
 (the medium's preset material: its shipped plate calibration where there is one)
 
 Writes benchmarks/results/sph_convergence.json after every run (finished runs are kept and
 skipped on a rerun, so the study can be interrupted and resumed; several studies may run at
 once: each merges its runs into the file under a lock). Each leg run is also kept in --store
 (``terradyn.sph.suite.leg_run``; git ignores it): a rerun with more --realizations runs only
-the new ones, and an interrupted leg run resumes from its checkpoint. A study, not a timing
+the new ones, and an interrupted leg run resumes from its checkpoint. With three or more
+resolutions of a quantity the file also holds its Richardson extrapolation from the three
+finest (observed order, extrapolated value, grid convergence index; Celik et al. 2008), where
+the changes are monotone. A study, not a timing
 benchmark: wall times are recorded as run, on whatever else the machine was doing."""
 from __future__ import annotations
 
@@ -27,10 +31,10 @@ OUT = Path(__file__).parent / "results" / "sph_convergence.json"
 LEGS = ("flat", "c", "reverse-c")
 
 
-def _changes(runs: dict, medium: str, e: float, match: str, phi: float, omega: float = 1.1, real: int = 1) -> dict:
-    """Relative change of every quantity between successive resolutions (coarse -> fine) of
-    one material (medium, stiffness, Drucker-Prager match, friction angle), one leg speed and
-    one number of leg realizations (the plate's runs join every set)."""
+def _by_dx(runs: dict, medium: str, e: float, match: str, phi: float, omega: float = 1.1, real: int = 1) -> dict:
+    """{dx_mm: {quantity: value}} of one material (medium, stiffness, Drucker-Prager match,
+    friction angle), one leg speed and one number of leg realizations (the plate's runs join
+    every set)."""
     by_dx: dict[float, dict] = {}
     for r in runs.values():
         if (r["medium"], r["youngs_MPa"], r["dp_match"], r["friction_deg"]) == (medium, e, match, phi) \
@@ -42,6 +46,11 @@ def _changes(runs: dict, medium: str, e: float, match: str, phi: float, omega: f
             else:
                 q[f"{r['scene']} lift peak"] = r["Fz"]["peak_sph"]
                 q[f"{r['scene']} thrust peak"] = r["Fx"]["peak_sph"]
+    return by_dx
+
+
+def _changes(by_dx: dict) -> dict:
+    """Relative change of every quantity between successive resolutions (coarse -> fine)."""
     dxs = sorted(by_dx, reverse=True)
     out = {}
     for a, b in zip(dxs, dxs[1:]):
@@ -50,9 +59,53 @@ def _changes(runs: dict, medium: str, e: float, match: str, phi: float, omega: f
     return out
 
 
-def _merge_and_write(key: str, val: dict) -> None:
-    """Add one run to the results file, re-reading it under a lock so that concurrent studies
-    (other media or stiffnesses) do not overwrite each other's runs."""
+def richardson(h: tuple[float, float, float], f: tuple[float, float, float]) -> dict:
+    """Observed order, extrapolated value and fine-grid convergence index from three
+    resolutions h1 < h2 < h3 (fine to coarse) with values f1, f2, f3: the procedure of Celik
+    et al. 2008 (J. Fluids Eng. 130:078001, "Procedure for estimation and reporting of
+    uncertainty due to discretization in CFD applications"), which allows unequal refinement
+    ratios (here 1.2-1.25): p from the fixed point of
+    p = |ln|e32 / e21| + ln((r21^p - s) / (r32^p - s))| / ln r21, e21 = f2 - f1, e32 = f3 - f2,
+    s = sign(e32 / e21). ``monotone`` is False when the changes alternate in sign (s < 0):
+    the order and extrapolation then describe noise, not convergence, and are not given."""
+    import math
+
+    (h1, h2, h3), (f1, f2, f3) = h, f
+    r21, r32 = h2 / h1, h3 / h2
+    e21, e32 = f2 - f1, f3 - f2
+    out = {"h_mm": [h1, h2, h3], "values": [f1, f2, f3], "monotone": bool(e21 * e32 > 0)}
+    if not out["monotone"] or e21 == 0:
+        return out
+    p = 1.0
+    for _ in range(200):
+        q = math.log((r21 ** p - 1) / (r32 ** p - 1))
+        pn = abs(math.log(abs(e32 / e21)) + q) / math.log(r21)
+        if pn > 20:  # the finest change is tiny against the coarser one: no finite order to quote
+            return out | {"order": None}
+        if abs(pn - p) < 1e-10:
+            break
+        p = pn
+    f_ext = (r21 ** p * f1 - f2) / (r21 ** p - 1)
+    out |= {"order": round(p, 3), "extrapolated": round(f_ext, 4),
+            "extrapolated_vs_finest": round(f_ext / f1 - 1, 4),
+            "gci_fine": round(1.25 * abs(e21 / f1) / (r21 ** p - 1), 4)}
+    return out
+
+
+def _extrapolation(by_dx: dict) -> dict:
+    """:func:`richardson` for every quantity at its three finest resolutions."""
+    out = {}
+    for k in sorted({k for q in by_dx.values() for k in q}):
+        hs = sorted(dx for dx, q in by_dx.items() if k in q)[:3]
+        if len(hs) == 3:
+            out[k] = richardson(tuple(hs), tuple(by_dx[dx][k] for dx in hs))
+    return out
+
+
+def _merge_and_write(key: str | None, val: dict | None) -> None:
+    """Add one run to the results file (None: none, only recompute the changes and the
+    extrapolations), re-reading it under a lock so that concurrent studies (other media or
+    stiffnesses) do not overwrite each other's runs."""
     from terradyn.io import atomic_write_text
 
     with open(OUT.with_suffix(".lock"), "w") as lock:
@@ -60,13 +113,18 @@ def _merge_and_write(key: str, val: dict) -> None:
         res = json.loads(OUT.read_text()) if OUT.exists() else {
             "machine": f"{platform.machine()}, {os.cpu_count()} cores (shared with other work)",
             "command": "python benchmarks/sph_convergence.py", "runs": {}}
-        res["runs"][key] = val
+        if key is not None:
+            res["runs"][key] = val
         sets = sorted({(r["medium"], r["youngs_MPa"], r["dp_match"], r["friction_deg"], r.get("omega", 1.1),
                         1 if r["scene"] == "plate" else r.get("realizations", 1)) for r in res["runs"].values()})
-        res["changes"] = {
-            f"{m}, E {e:g} MPa, {dm}, phi {phi:g} deg" + (f", omega {w:g}" if w != 1.1 else "")
-            + (f", legs: mean of {k} runs" if k > 1 else ""): _changes(res["runs"], m, e, dm, phi, w, k)
-            for m, e, dm, phi, w, k in sets}
+        res["changes"], res["extrapolation"] = {}, {}
+        for m, e, dm, phi, w, k in sets:
+            name = (f"{m}, E {e:g} MPa, {dm}, phi {phi:g} deg" + (f", omega {w:g}" if w != 1.1 else "")
+                    + (f", legs: mean of {k} runs" if k > 1 else ""))
+            by_dx = _by_dx(res["runs"], m, e, dm, phi, w, k)
+            res["changes"][name] = _changes(by_dx)
+            if ext := _extrapolation(by_dx):
+                res["extrapolation"][name] = ext
         atomic_write_text(OUT, json.dumps(res, indent=1))
 
 
@@ -83,7 +141,13 @@ def main() -> None:
     ap.add_argument("--scenes", nargs="+", default=["plate", *LEGS], choices=["plate", *LEGS])
     ap.add_argument("--store", type=Path, default=Path(__file__).parent.parent / ".sph-runs",
                     help="directory of the stored leg runs (default: .sph-runs in the repository)")
+    ap.add_argument("--summarize", action="store_true",
+                    help="run nothing: recompute the changes and the Richardson extrapolations of the results file")
     a = ap.parse_args()
+    if a.summarize:
+        _merge_and_write(None, None)
+        print(json.dumps(json.loads(OUT.read_text())["extrapolation"], indent=1))
+        return
     os.environ["NUMBA_NUM_THREADS"] = str(a.threads)  # before numba is imported
 
     from terradyn.sph.calibration import plate_slope
