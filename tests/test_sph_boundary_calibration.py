@@ -261,6 +261,11 @@ def test_leg_runs_are_stored_and_read_back_not_rerun(monkeypatch, tmp_path):
     assert len(calls) == 3 and c["stored"] == 2 and c["Fz"]["peaks_runs"][:2] == pytest.approx(a["Fz"]["peaks_runs"])
     suite.leg_vs_measured("flat", "poppy LP", dx=4e-3, omega=0.5, store=store)  # other inputs: a new run
     assert len(calls) == 4
+    monkeypatch.setattr(suite, "leg_run_code", lambda: "other code")  # runs stored by other code: not reused
+    d = suite.leg_vs_measured("flat", "poppy LP", dx=4e-3, store=store)
+    assert len(calls) == 5 and d["stored"] == 0
+    monkeypatch.undo()
+    monkeypatch.setattr(api, "simulate", fake)
     victim = first[1]
     victim.write_text("not a run")
     with pytest.raises(InputError, match="store"):

@@ -155,16 +155,12 @@ def _sph_inputs(tier: str, out: Path, code: str, say, regenerate: bool) -> tuple
     else:
         shutil.rmtree(folder, ignore_errors=True)
         (folder / "figures").mkdir(parents=True)
-        # the leg runs (most of the hours) are kept per part key beside the part, so that an
-        # interrupted full tier resumes: finished runs are read back, the one in progress
-        # resumes from its checkpoint; runs of another key (other code) are not reused
+        # the leg runs (most of the hours) are kept beside the part, so that an interrupted
+        # full tier resumes: finished runs are read back, the one in progress resumes from its
+        # checkpoint (a stored run's key holds its code: runs of other code are not reused)
         legs = out / "parts" / "sph-run-legs"
-        if legs.is_dir():
-            for d in legs.iterdir():
-                if d.is_dir() and d.name != key:
-                    shutil.rmtree(d, ignore_errors=True)
         res = validate(quick=False, progress=lambda m: say(f"sph validation: {m}"), figures_dir=folder / "figures",
-                       store=legs / key)
+                       store=legs)
         atomic_write_text(folder / "validation.json", json.dumps(res, indent=1, default=float) + "\n")
         atomic_write_text(meta, json.dumps({"key": key, "seconds": time.perf_counter() - t0}) + "\n")
         shutil.rmtree(legs, ignore_errors=True)  # done: the part itself is the cache now

@@ -209,9 +209,24 @@ def check_realizations(n) -> int:
     return k
 
 
-#: Version of the stored leg runs (:func:`leg_run`): raise it when a change of the code
-#: changes a run's forces, so that runs stored before are recomputed, not reused.
-RUN_STORE_VERSION = 1
+#: The modules that define a 2D leg run's forces (:func:`leg_run` keys stored runs to their
+#: sources, so that a run stored by other code is recomputed, never reused; the GPU loops are
+#: left out because a run's key does not depend on the backend, as for checkpoints).
+LEG_RUN_MODULES = ("terradyn.geometry", "terradyn.motion", "terradyn.sph.api", "terradyn.sph.scenes",
+                   "terradyn.sph.solver", "terradyn.sph.cpu", "terradyn.sph.physics",
+                   "terradyn.sph.kernels", "terradyn.sph.neighbours", "terradyn.sph.materials",
+                   "terradyn.sph.state", "terradyn.sph.source")
+
+
+def leg_run_code() -> str:
+    """Digest of the sources of :data:`LEG_RUN_MODULES` (part of a stored run's key)."""
+    import importlib
+
+    from .._jitcache import source_digest
+
+    for m in LEG_RUN_MODULES:
+        importlib.import_module(m)
+    return source_digest(LEG_RUN_MODULES)
 
 
 def leg_run(name: str, motion: Rotation, mat, config, *, store=None, progress=None):
@@ -220,7 +235,7 @@ def leg_run(name: str, motion: Rotation, mat, config, *, store=None, progress=No
 
     ``store``: a directory, or None. With a directory a finished run is kept there
     (``leg-NAME-KEY.nc``, KEY a hash of everything that defines the run: leg, motion,
-    material, numerical settings, :data:`RUN_STORE_VERSION`) and a later call with the same
+    material, numerical settings and the code, :func:`leg_run_code`) and a later call with the same
     inputs reads it instead of running again; while it runs, a checkpoint beside it
     (``.leg-NAME-KEY.ckpt.npz``, every minute) lets an interrupted run resume where it stopped.
     A file under that name that is not this run's is refused (:class:`InputError` on
@@ -240,7 +255,7 @@ def leg_run(name: str, motion: Rotation, mat, config, *, store=None, progress=No
         return simulate(leg, motion, mat, config=config, progress=progress), False
     store = Path(store)
     spec = {"leg": name, "motion": asdict(motion), "material": mat.describe(),
-            "config": config.run_items(), "version": RUN_STORE_VERSION}
+            "config": config.run_items(), "code": leg_run_code()}
     key = hashlib.sha256(json.dumps(spec, sort_keys=True, default=str).encode()).hexdigest()[:16]
     path = store / f"leg-{name}-{key}.nc"
     if path.exists():
