@@ -74,7 +74,7 @@ def richardson(h: tuple[float, float, float], f: tuple[float, float, float]) -> 
     r21, r32 = h2 / h1, h3 / h2
     e21, e32 = f2 - f1, f3 - f2
     out = {"h_mm": [h1, h2, h3], "values": [f1, f2, f3], "monotone": bool(e21 * e32 > 0)}
-    if not out["monotone"] or e21 == 0:
+    if not out["monotone"]:
         return out
     p = 1.0
     for _ in range(200):
