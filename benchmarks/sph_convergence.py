@@ -3,7 +3,7 @@ and the three legs' peaks in the rotating-leg test (Li 2013 Fig. S5) at several 
 spacings, with the change between successive resolutions.
 
     python benchmarks/sph_convergence.py [--medium "poppy LP"] [--dx-mm 2 2.5 3 4]
-        [--youngs-mpa 0.25] [--omega 1.1] [--realizations 2] (plate runs; legs: the mean curve of that many runs) [--threads 1]
+        [--youngs-mpa 0.25] [--friction-deg PHI] [--omega 1.1] [--realizations 2] (plate runs, a stored entry with fewer gets the missing ones; legs: the mean curve of that many runs) [--threads 1]
         [--scenes plate flat c reverse-c] [--dp-match plane-strain|bui2008] [--store .sph-runs]
     python benchmarks/sph_convergence.py --summarize   (recompute the changes and extrapolations)
 (the medium's preset material: its shipped plate calibration where there is one)
@@ -133,6 +133,9 @@ def main() -> None:
     ap.add_argument("--medium", default="poppy LP")
     ap.add_argument("--dx-mm", type=float, nargs="+", default=[2.0, 2.5, 3.0, 4.0])
     ap.add_argument("--youngs-mpa", type=float, default=0.25)
+    ap.add_argument("--friction-deg", type=float, default=None,
+                    help="friction angle, deg (default: the medium's production calibration, at 2.5 mm, "
+                         "so that every resolution runs one material)")
     ap.add_argument("--omega", type=float, default=1.1, help="leg angular speed, rad/s")
     ap.add_argument("--realizations", type=int, default=2)
     ap.add_argument("--threads", type=int, default=1)
@@ -159,7 +162,7 @@ def main() -> None:
     from terradyn.units import DEG, N_PER_CM3
 
     done = json.loads(OUT.read_text())["runs"] if OUT.exists() else {}
-    mat = from_medium(a.medium, youngs=a.youngs_mpa * 1e6, dp_match=a.dp_match)
+    mat = from_medium(a.medium, youngs=a.youngs_mpa * 1e6, dp_match=a.dp_match, friction_deg=a.friction_deg)
     for dx in a.dx_mm:
         cfg = SPHConfig(dx=dx * 1e-3)
         for scene in a.scenes:
@@ -168,18 +171,26 @@ def main() -> None:
                 key += f"|phi{mat.friction / DEG:.2f}"  # a friction angle other than the repose angle
             if scene != "plate" and a.realizations > 1:
                 key += f"|r{a.realizations}"  # legs: the mean curve of several runs (older keys: one run)
-            if key in done:
+            have = len(done[key].get("alphas_N_cm3", ())) if key in done else 0
+            if key in done and (scene != "plate" or have >= a.realizations):
                 continue
             t0 = time.perf_counter()
             base = {"scene": scene, "medium": a.medium, "youngs_MPa": a.youngs_mpa, "dx_mm": dx,
                     "omega": a.omega, "friction_deg": round(mat.friction / DEG, 2),
                     "threads": a.threads, "dp_match": a.dp_match}
             if scene == "plate":
-                r = plate_slope(mat, config=cfg, realizations=a.realizations)
-                val = base | {"alpha_z_origin_N_cm3": round(r["alpha_z"] / N_PER_CM3, 4),
-                              "alphas_N_cm3": [round(x / N_PER_CM3, 4) for x in r["alphas"]],
-                              "slope_free_N_cm3": round(r["slope"] / N_PER_CM3, 4),
-                              "intercept_kPa": round(r["intercept_Pa"] / 1e3, 3),
+                # a stored entry with fewer runs gets only the missing ones (runs have, have + 1, ...)
+                r = plate_slope(mat, config=cfg, realizations=a.realizations - have, first=have)
+                old = done.get(key, {})
+                alphas = old.get("alphas_N_cm3", []) + [round(x / N_PER_CM3, 4) for x in r["alphas"]]
+                slopes = old.get("slopes_N_cm3", [old["slope_free_N_cm3"]] * have if have else []) \
+                    + [round(x / N_PER_CM3, 4) for x in r["slopes"]]
+                # per-run intercepts were not kept before; the old mean stands for its runs
+                icpts = [old["intercept_kPa"]] * have + [r["intercept_Pa"] / 1e3] * len(r["alphas"])
+                val = base | {"alpha_z_origin_N_cm3": round(sum(alphas) / len(alphas), 4),
+                              "alphas_N_cm3": alphas, "slopes_N_cm3": slopes,
+                              "slope_free_N_cm3": round(sum(slopes) / len(slopes), 4),
+                              "intercept_kPa": round(sum(icpts) / len(icpts), 3),
                               "measured_N_cm3": alpha_z_plate_measured(a.medium) / N_PER_CM3}
             else:
                 r = leg_vs_measured(scene, mat, omega=a.omega, config=cfg, realizations=a.realizations,
@@ -188,7 +199,7 @@ def main() -> None:
                     c: {k: (round(v, 4) if isinstance(v, float) else [round(x, 4) for x in v])
                         for k, v in r[c].items() if isinstance(v, float) or k == "peaks_runs"}
                     for c in ("Fx", "Fz")}
-            val["wall_s"] = round(time.perf_counter() - t0, 1)
+            val["wall_s"] = round(time.perf_counter() - t0 + done.get(key, {}).get("wall_s", 0.0) * (scene == "plate"), 1)
             _merge_and_write(key, val)
             print(key, json.dumps(val), flush=True)
 

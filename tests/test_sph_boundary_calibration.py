@@ -342,3 +342,58 @@ def test_validate_cli_keeps_leg_runs_in_out_runs(tmp_path, monkeypatch):
     monkeypatch.setattr(suite, "validate", fake)
     assert main(["sph", "validate", "--scene", "legs", "--out", str(tmp_path / "v")]) == 0
     assert seen["store"] == tmp_path / "v" / "runs"
+
+
+def test_a_medium_takes_its_calibration_at_the_runs_particle_spacing(monkeypatch):
+    # the plate test is not converged in resolution: a medium run at a spacing with a shipped
+    # calibration of its own takes that one; elsewhere the production one, and says so
+    base = {"friction_deg": 33.0, "youngs_Pa": 2.5e5, "dx_m": 2.5e-3, "alpha_z_measured_N_per_cm3": 0.35,
+            "relative_difference": 0.0, "dp_match": "plane-strain"}
+    fine = dict(base, friction_deg=35.5, dx_m=1.6e-3, relative_difference=0.01)
+    monkeypatch.setattr(calibration, "shipped", lambda: {"poppy LP": dict(base, other_resolutions={"1.6": fine})})
+    assert calibration.calibrated_spacings("poppy LP") == [1.6, 2.5]
+    assert materials.from_medium("poppy LP").friction == pytest.approx(33 * DEG)
+    at = materials.from_medium("poppy LP", dx=1.6e-3)
+    assert at.friction == pytest.approx(35.5 * DEG) and "dx = 1.6 mm" in at.sources["friction"]
+    assert materials.from_medium("poppy LP", dx=2.5e-3).friction == pytest.approx(33 * DEG)
+    off = materials.from_medium("poppy LP", dx=4e-3)
+    assert off.friction == pytest.approx(33 * DEG)
+    assert "no calibration of its own" in off.sources["friction"] and "1.6, 2.5 mm" in off.sources["friction"]
+    assert materials.from_medium("poppy LP", dx=1.6e-3, friction_deg=30).friction == pytest.approx(30 * DEG)
+    assert materials.material("poppy LP", 1.6e-3).friction == pytest.approx(35.5 * DEG)
+    # the model's options (CLI, sweeps) and the leg comparison pick it by their dx
+    from terradyn.models import sph as sph_model
+
+    assert sph_model.material("poppy LP", {"dx_mm": 1.6}).friction == pytest.approx(35.5 * DEG)
+    assert sph_model.material("poppy LP", {"dx_mm": 2.0}).friction == pytest.approx(33 * DEG)
+    seen = []
+
+    def stop(name, motion, mat, cfg, store=None, progress=None):
+        seen.append(mat.friction)
+        raise KeyboardInterrupt  # enough: the run got its material
+
+    monkeypatch.setattr(suite, "leg_run", stop)
+    with pytest.raises(KeyboardInterrupt):
+        suite.leg_vs_measured("flat", "poppy LP", dx=1.6e-3)
+    assert seen == [pytest.approx(35.5 * DEG)]
+
+
+def test_calibrate_cli_starts_a_li_medium_at_its_shipped_calibration(monkeypatch, tmp_path, capsys):
+    from terradyn.cli import main
+
+    starts = []
+
+    def fake(mat, target, **kw):
+        starts.append(mat.friction / DEG)
+        return calibration.Calibration(mat.name, mat.friction / DEG, target / N_PER_CM3, target / N_PER_CM3,
+                                       kw["dx"], converged=True, friction_se_deg=0.0)
+
+    monkeypatch.setattr(calibration, "calibrate_friction", fake)
+    assert main(["sph", "calibrate", "--medium", "poppy LP", "--dx-mm", "1.6", "-o", str(tmp_path / "c.json")]) == 0
+    assert starts[-1] == pytest.approx(materials.from_medium("poppy LP").friction / DEG)
+    assert main(["sph", "calibrate", "--medium", "poppy LP", "--friction-start-deg", "31",
+                 "-o", str(tmp_path / "d.json")]) == 0
+    assert starts[-1] == pytest.approx(31.0)
+    assert json.loads((tmp_path / "d.json").read_text())["poppy LP"]["dx_m"] == pytest.approx(2.5e-3)
+    assert main(["sph", "calibrate", "--medium", "poppy LP", "--friction-start-deg", "5"]) == 2
+    assert "friction-start-deg" in capsys.readouterr().err

@@ -20,7 +20,7 @@ def calibrate_cmd(
     density_kg_m3: Optional[float] = typer.Option(None, help="A user's medium: bulk density, kg/m^3 (grain density x volume fraction)."),
     alpha_z_n_cm3: Optional[float] = typer.Option(None, "--alpha-z-n-cm3", help="A user's medium: measured plate-test slope alpha_z(0, pi/2), N/cm^3."),
     name: str = typer.Option("custom", help="A user's medium: its name in the output."),
-    friction_start_deg: float = typer.Option(30.0, help="A user's medium: first friction angle of the search, deg."),
+    friction_start_deg: Optional[float] = typer.Option(None, show_default=False, help="First friction angle of the search, deg [default: a Li 2013 medium's shipped calibration (its angle of repose where there is none); a user's medium 30]."),
     dx_mm: float = typer.Option(2.5, "--dx-mm", help="Particle spacing of the plate test, mm (the resolution the medium will run at; 2.5 is the production resolution, docs/sph.md)."),
     youngs_mpa: float = typer.Option(0.25, "--youngs-mpa", help="Young's modulus of the SPH material, MPa (numerical stiffness; at friction angles above ~40 deg the plate test needs >= 1 MPa, docs/sph.md)."),
     tol: float = typer.Option(0.03, help="Relative tolerance on the plate slope."),
@@ -43,10 +43,12 @@ def calibrate_cmd(
     from ..media import MEDIA
     from ..sph.calibration import PLATE_TEST, calibrate_friction
     from ..sph.materials import from_medium, from_properties
-    from ..units import N_PER_CM3
+    from ..units import DEG, N_PER_CM3
     from . import err
 
     dx = in_range("dx-mm", dx_mm, 1.0, 20.0, "mm") * 1e-3
+    if friction_start_deg is not None:
+        in_range("friction-start-deg", friction_start_deg, 10, 60, "deg")
     integer("realizations", realizations, 1)
     youngs = in_range("youngs-mpa", youngs_mpa, 0.05, 100.0, "MPa") * 1e6
     integer("max-evals", max_evals, 2)
@@ -63,15 +65,20 @@ def calibrate_cmd(
             raise InputError("density-kg-m3" if density_kg_m3 is None else "alpha-z-n-cm3",
                              "a user's medium needs both --density-kg-m3 and --alpha-z-n-cm3")
         positive("alpha-z-n-cm3", alpha_z_n_cm3, "N/cm^3")
-        in_range("friction-start-deg", friction_start_deg, 10, 60, "deg")
-        jobs.append((from_properties(name, density_kg_m3, friction_start_deg, youngs=youngs),
+        start = 30.0 if friction_start_deg is None else friction_start_deg
+        jobs.append((from_properties(name, density_kg_m3, start, youngs=youngs),
                      alpha_z_n_cm3 * N_PER_CM3))
     else:
         for m in medium or list(MEDIA):
             if m not in MEDIA or MEDIA[m].alpha_z_plate is None:
                 raise InputError("medium", f"unknown value {m!r}; allowed: "
                                            + ", ".join(k for k in MEDIA if MEDIA[k].alpha_z_plate))
-            jobs.append((from_medium(m, friction="repose", youngs=youngs), MEDIA[m].alpha_z_plate))
+            # the search starts where the shipped calibration found it (the repose angle where
+            # there is none): one or two evaluations instead of four to six at a new resolution
+            start = friction_start_deg
+            if start is None:
+                start = from_medium(m).friction / DEG
+            jobs.append((from_medium(m, friction_deg=start, youngs=youngs), MEDIA[m].alpha_z_plate))
     result = {"_meta": {"what": "SPH friction angles calibrated on the plate test (terradyn sph calibrate)",
                         "plate_test": PLATE_TEST, "dx_m": dx, "realizations": realizations,
                         "terradyn_version": __version__,

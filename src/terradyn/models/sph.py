@@ -52,13 +52,19 @@ _CFG = {"hdx": "hdx", "cfl": "cfl", "av_alpha": "av_alpha", "av_beta": "av_beta"
         "settle_time_s": "settle_time", "lowpass_hz": "lowpass_hz", "backend": "backend"}
 
 
+def _dx(opts: dict) -> float:
+    """The particle spacing (m) the checked options ask for."""
+    from ..sph import FULL_DX, QUICK_DX
+
+    return opts["dx_mm"] * 1e-3 if "dx_mm" in opts else (QUICK_DX if opts.get("quick") else FULL_DX)
+
+
 def config(opts: dict, field=lambda k: k.replace("_", "-")):
     """The :class:`terradyn.sph.SPHConfig` of checked options (the GPU checked usable)."""
-    from ..sph import FULL_DX, QUICK_DX, SPHConfig
+    from ..sph import SPHConfig
     from ..sph.solver import resolve_backend
 
-    quick = bool(opts.get("quick", False))
-    dx = opts["dx_mm"] * 1e-3 if "dx_mm" in opts else (QUICK_DX if quick else FULL_DX)
+    dx = _dx(opts)
     kw = {c: opts[k] for k, c in _CFG.items() if k in opts}
     if "wall_friction_deg" in opts and "channel_width_cm" not in opts:
         raise InputError(field("wall_friction_deg"), f"has no effect without "
@@ -80,8 +86,9 @@ def config(opts: dict, field=lambda k: k.replace("_", "-")):
 
 
 def material(medium, opts: dict, field=lambda k: k.replace("_", "-")):
-    """The material: a Li 2013 medium (optionally another friction angle), the user's own
-    (density and friction angle) or a :class:`terradyn.sph.GranularMaterial` as it is."""
+    """The material: a Li 2013 medium (optionally another friction angle; its shipped
+    calibration at the run's particle spacing where there is one), the user's own (density
+    and friction angle) or a :class:`terradyn.sph.GranularMaterial` as it is."""
     from .. import media
     from ..sph.materials import GranularMaterial, from_medium, from_properties
 
@@ -106,7 +113,7 @@ def material(medium, opts: dict, field=lambda k: k.replace("_", "-")):
         return from_medium(medium, friction_deg=opts.get("friction_deg"),
                            dilatancy=opts.get("dilatancy") or "none",
                            dp_match=opts.get("dp_match") or "plane-strain",
-                           rheology=opts.get("rheology") or "constant")
+                           rheology=opts.get("rheology") or "constant", dx=_dx(opts))
     except InputError as e:
         if e.field not in ("dilatancy", "dp_match"):
             raise

@@ -75,7 +75,7 @@ def simulate_run(leg: Leg, motion: Rotation | PlanarMotion, medium: str | Granul
     contact start; particle snapshots at ``snapshot_times``: s since the motion's start,
     those inside the simulated part)."""
     cfg = config or default_config(quick)
-    mat = _material(medium)
+    mat = _material(medium, cfg.dx)
     thickness = LEG_THICKNESS if thickness is None else thickness
     positive("thickness", thickness, "m")
     traj = motion.trajectory()

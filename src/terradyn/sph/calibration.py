@@ -46,10 +46,11 @@ def bearing_nq(phi: float) -> float:
     return math.exp(math.pi * t) * math.tan(math.pi / 4 + phi / 2) ** 2
 
 
-def plate_slope(mat, *, dx: float = 4e-3, config=None, realizations: int = 1) -> dict:
+def plate_slope(mat, *, dx: float = 4e-3, config=None, realizations: int = 1, first: int = 0) -> dict:
     """The SPH plate test (:func:`terradyn.sph.validation.plate_push`, :data:`PLATE_TEST`)
     for a :class:`~terradyn.sph.materials.GranularMaterial`, averaged over ``realizations``
-    runs (physically identical starts, see plate_push's ``realization``).
+    runs (physically identical starts, see plate_push's ``realization``), numbered from
+    ``first`` (so that runs ``first``, ``first + 1``, ... add to an earlier call's).
 
     Returns ``alpha_z`` (N/m^3): the RFT-consistent coefficient, the least-squares fit of
     sigma = alpha |z| through the origin over depths 1-4 cm (RFT applies alpha that way; the
@@ -67,7 +68,7 @@ def plate_slope(mat, *, dx: float = 4e-3, config=None, realizations: int = 1) ->
     cfg = config or SPHConfig(dx=dx)
     t0 = time.perf_counter()
     alphas, slopes, icpts = [], [], []
-    for k in range(int(realizations)):
+    for k in range(int(first), int(first) + int(realizations)):
         r = plate_push(mat, speed=PLATE_TEST["speed_m_s"], depth=PLATE_TEST["depth_m"],
                        n_samples=PLATE_TEST["n_samples"], fit_from=PLATE_TEST["fit_from_m"],
                        config=cfg, realization=k)
@@ -190,7 +191,9 @@ CALIBRATION_FILE = "sph_calibration.json"
 
 def shipped() -> dict:
     """The shipped calibration (``terradyn/data/sph_calibration.json``): medium ->
-    :meth:`Calibration.describe` dict, plus ``_meta``; empty if the file is absent."""
+    :meth:`Calibration.describe` dict (at the production resolution; calibrations of the
+    medium at other particle spacings under its ``"other_resolutions"``, keyed by the spacing
+    in mm), plus ``_meta``; empty if the file is absent."""
     try:
         text = resources.files("terradyn.data").joinpath(CALIBRATION_FILE).read_text()
     except (FileNotFoundError, ModuleNotFoundError):
@@ -200,3 +203,29 @@ def shipped() -> dict:
     except json.JSONDecodeError as e:  # a corrupt package file: say so, do not guess
         raise InputError("sph_calibration.json", f"unreadable ({e})") from None
     return data
+
+
+def _mm(dx: float) -> str:
+    """A particle spacing (m) as the key of ``other_resolutions`` (mm, as written: "1.6")."""
+    return f"{round(dx * 1e3, 4):g}"
+
+
+def shipped_at(medium: str, dx: float | None = None) -> dict | None:
+    """The shipped calibration of ``medium`` for a run at particle spacing ``dx`` (m): the one
+    made at ``dx`` where the package has it, else the production one (None if the medium has
+    none). The plate test converges slowly with resolution (docs/sph.md, "Convergence"), so
+    a medium run at another spacing than it was calibrated at reads a plate slope 5-15 % off
+    the measured one; calibrating at the run's own spacing removes that part, and the
+    leg-to-plate ratios move less with resolution than either force does."""
+    found = shipped().get(medium)
+    if found is None or dx is None:
+        return found
+    return found.get("other_resolutions", {}).get(_mm(dx), found)
+
+
+def calibrated_spacings(medium: str) -> list[float]:
+    """The particle spacings (mm) at which the package ships a calibration of ``medium``."""
+    found = shipped().get(medium)
+    if found is None:
+        return []
+    return sorted({round(found["dx_m"] * 1e3, 4), *(float(k) for k in found.get("other_resolutions", {}))})

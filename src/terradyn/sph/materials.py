@@ -220,7 +220,7 @@ BOLTON1986 = ("M. D. Bolton, The strength and dilatancy of sands, Geotechnique 3
 def from_medium(medium: str, youngs: float | None = None, poisson: float = 0.3,
                 friction_deg: float | None = None, friction: str | None = None,
                 dilatancy: str = "none", dp_match: str = "plane-strain",
-                rheology: str = "constant") -> GranularMaterial:
+                rheology: str = "constant", dx: float | None = None) -> GranularMaterial:
     """The SPH material for a medium of :data:`terradyn.media.MEDIA` (Li 2013 Table S1).
 
     ``friction``: "repose" (the angle of repose, Table S1) or "calibrated" (the plane-strain
@@ -246,15 +246,21 @@ def from_medium(medium: str, youngs: float | None = None, poisson: float = 0.3,
     (2006)'s mu(I) with their glass beads' rise mu_2 - mu_s and I_0 (the only measured mu(I)
     in the brief's sources; used for the seeds too, an assumption) on top of the friction
     angle above (which stays the quasi-static one: the plate calibration is unchanged), and
-    the medium's grain diameter and grain density from Li 2013 Table S1."""
-    from .calibration import shipped
+    the medium's grain diameter and grain density from Li 2013 Table S1.
+
+    ``dx`` (m): the particle spacing the material will run at. Where the package ships a
+    calibration of the medium made at that spacing, the calibrated friction angle is that
+    one (the plate test is not converged in resolution, docs/sph.md "Convergence"); else,
+    and when None, the production calibration (2.5 mm), and ``sources["friction"]`` says
+    that the run's spacing differs from the calibration's."""
+    from .calibration import calibrated_spacings, shipped_at
 
     choice("dp_match", dp_match, list(DP_MATCHES))
     choice("medium", medium, list(MEDIA))
     choice("dilatancy", dilatancy, ["bolton", "none"])
     choice("rheology", rheology, list(RHEOLOGIES))
     m = MEDIA[medium]
-    found = shipped().get(medium)
+    found = shipped_at(medium, dx)
     if found is not None and found.get("dp_match", "bui2008") != dp_match:
         found = None  # made for the other cone: not a calibration of this model
     if friction is None:
@@ -278,6 +284,10 @@ def from_medium(medium: str, youngs: float | None = None, poisson: float = 0.3,
                f"measured alpha_z(0, pi/2) = {cal['alpha_z_measured_N_per_cm3']:g} N/cm^3 "
                f"({LI2013}, Table S3) within {abs(cal['relative_difference']) * 100:.1f} %; "
                "terradyn sph calibrate")
+        if dx is not None and abs(cal["dx_m"] - dx) > 1e-9:
+            src += (f"; this run's dx = {dx * 1e3:g} mm has no calibration of its own (shipped at "
+                    + ", ".join(f"{v:g}" for v in calibrated_spacings(medium))
+                    + " mm): its plate slope differs from the measured one (docs/sph.md, Convergence)")
     else:
         phi = m.repose_angle
         src = f"angle of repose, {LI2013}, Table S1"
@@ -339,8 +349,11 @@ def from_properties(name: str, density: float, friction_deg: float, *,
                                      "k0": f"Jaky 1 - sin(phi): {JAKY1944}"})
 
 
-def material(name_or_material: str | GranularMaterial) -> GranularMaterial:
+def material(name_or_material: str | GranularMaterial, dx: float | None = None) -> GranularMaterial:
+    """A material as given, or a Li 2013 medium's preset by name; with ``dx`` (m, the particle
+    spacing it will run at) the medium's calibration at that spacing where one is shipped
+    (:func:`from_medium`)."""
     if isinstance(name_or_material, GranularMaterial):
         return name_or_material
     choice("medium", name_or_material, list(MATERIALS))
-    return MATERIALS[name_or_material]
+    return MATERIALS[name_or_material] if dx is None else from_medium(name_or_material, dx=dx)

@@ -90,8 +90,8 @@ def bed_scene(width: float = 0.2, depth: float = 0.1, dx: float = 5e-3,
     """A bed at rest: x in [-width/2, width/2], z in [-depth, 0], walls on three sides."""
     positive("width", width, "m")
     positive("depth", depth, "m")
-    mat = _material(medium)
     cfg = config or SPHConfig(dx=dx, **cfg_kw)
+    mat = _material(medium, cfg.dx)
     dx = cfg.dx
     width, depth = snap(width, dx), snap(depth, dx)
     sx, sz = lattice(-width / 2, width / 2, -depth, 0.0, dx)
@@ -108,8 +108,8 @@ def column_scene(aspect: float, base: float = 0.05, dx: float = 2.5e-3,
     """A 2D granular column of width ``base`` (L_i) and height aspect * base against a left wall
     on a rough floor, released at t = 0 (the gate of Lube et al. 2005 vanishes)."""
     a = positive("aspect", aspect)
-    mat = _material(medium)
     cfg = config or SPHConfig(dx=dx, **cfg_kw)
+    mat = _material(medium, cfg.dx)
     dx = cfg.dx
     base = snap(base, dx)
     H = snap(a * base, dx)
@@ -134,8 +134,8 @@ def slope_scene(angle: float, height: float = 0.06, dx: float = 4e-3,
 
     in_range("angle", angle, 1e-3, math.radians(80.0), "rad")
     positive("height", height, "m")
-    mat = _material(medium)
     cfg = config or SPHConfig(dx=dx, **cfg_kw)
+    mat = _material(medium, cfg.dx)
     dx = cfg.dx
     height = snap(height, dx)
     foot = snap(height / math.tan(angle) + dx, dx)
@@ -227,8 +227,8 @@ def leg_scene(leg: Leg, traj: Trajectory, i0: int, medium: str | GranularMateria
               config: SPHConfig | None = None, **cfg_kw) -> Scene:
     """A bed (x centred on the hip's mean x) with the leg placed at trajectory sample ``i0``;
     granular particles that overlap the leg's body there are removed."""
-    mat = _material(medium)
     cfg = config or SPHConfig(**cfg_kw)
+    mat = _material(medium, cfg.dx)
     dx = cfg.dx
     xc = float(np.mean(traj.hip_x))
     bed_width, bed_depth = snap(bed_width, dx), snap(bed_depth, dx)

@@ -290,10 +290,12 @@ def leg_vs_measured(name: str, medium, *, omega=1.1, dx=4e-3, config=None, progr
     rerun reads it (:func:`leg_run`): an interrupted study loses at most the run in progress,
     and that one resumes from its checkpoint; ``stored`` in the result counts the runs read."""
     from ..rft import simulate as rft_simulate
-    from .materials import material
+    from .materials import from_medium, material
     from .state import SPHConfig
 
-    mat = material(medium)
+    cfg = config or SPHConfig(dx=dx)
+    # a medium by name: its calibration at this particle spacing where one is shipped
+    mat = from_medium(medium, dx=cfg.dx) if isinstance(medium, str) and medium in MEDIA else material(medium)
     exp = measured_legs()
     n_real = check_realizations(realizations)
 
@@ -302,7 +304,6 @@ def leg_vs_measured(name: str, medium, *, omega=1.1, dx=4e-3, config=None, progr
                         theta_end=135 * DEG, n_theta=271)
 
     leg = make_leg(name)
-    cfg = config or SPHConfig(dx=dx)
     got = [leg_run(name, motion(j), mat, cfg, store=store, progress=progress) for j in range(n_real)]
     runs = [r for r, _ in got]
     sph = runs[0].copy()
@@ -347,8 +348,9 @@ def validate(*, quick=False, scenes=SCENES, media=None, dx=None, omega=1.1, prog
 
     choice("rheology", rheology, list(RHEOLOGIES))
 
-    def material(m):
-        return from_medium(m, rheology=rheology) if rheology != "constant" else MATERIALS[m]
+    def material(m, at=None):
+        # the medium's calibration at the scene's particle spacing where one is shipped
+        return from_medium(m, rheology=rheology, dx=dx if at is None else at)
 
     for s in scenes:
         choice("scene", s, list(SCENES))
@@ -425,7 +427,7 @@ def validate(*, quick=False, scenes=SCENES, media=None, dx=None, omega=1.1, prog
     if "rig" in scenes:
         for m in media:
             say(f"plate rig, {m}")
-            r = plate_rig(material(m), quick=quick, dx=max(dx, 4e-3))
+            r = plate_rig(material(m, at=max(dx, 4e-3)), quick=quick, dx=max(dx, 4e-3))
             for comp in ("z", "x"):
                 checks.append(Check("rig", f"RMS(alpha_{comp} - Table S5) / max|alpha_z|, {m}",
                                     r[f"rms_{comp}_frac"], None,
@@ -435,7 +437,7 @@ def validate(*, quick=False, scenes=SCENES, media=None, dx=None, omega=1.1, prog
                                                 for k, v in r.items()}
             if fig(f"rig_{m.replace(' ', '_')}.png"):
                 plots.rig_maps(r, fig(f"rig_{m.replace(' ', '_')}.png"),
-                               title=f"virtual plate rig, {m} (phi = {material(m).friction / DEG:.1f} deg)")
+                               title=f"virtual plate rig, {m} (phi = {material(m, at=max(dx, 4e-3)).friction / DEG:.1f} deg)")
     if "legs" in scenes:
         for m in [x for x in media if x in LEG_MEDIA]:
             for leg in (("flat",) if quick else LEGS):

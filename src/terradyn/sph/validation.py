@@ -35,8 +35,8 @@ def bed_at_rest(medium="3 mm glass CP", *, width=0.2, depth=0.1, dx=4e-3, initia
     geostatic rho g d, the fitted slope d(-szz)/d(depth) (Pa/m) against rho g, and the lateral
     ratio sxx/szz against the Drucker-Prager limit (1 - sqrt3 a)/(1 + 2 sqrt3 a) that a bed
     loaded from zero stress reaches (its elastic K0 = nu/(1 - nu) lies outside the cone)."""
-    mat = _material(medium)
     cfg = SPHConfig(dx=dx, settle_time=settle_time)
+    mat = _material(medium, cfg.dx)
     sc = bed_scene(width=width, depth=depth, medium=mat, initial=initial, config=cfg)
     res = run(sc, 0.0 if initial == "zero" else 0.1)
     s = res.solver
@@ -106,7 +106,7 @@ def column_collapse(aspect: float, medium="3 mm glass CP", *, base=0.06, dx=4e-3
     apart), with Coulomb friction ``wall_friction`` (rad; None: the medium's friction angle);
     None: plane strain without walls."""
     positive("aspect", aspect)
-    mat = _material(medium)
+    mat = _material(medium, dx)
     cfg = SPHConfig(dx=dx, settle_time=0.0, channel_width=channel_width,
                     wall_friction=wall_friction)
     sc = column_scene(aspect, base=base, medium=mat, config=cfg)
@@ -143,7 +143,7 @@ def slope_stability(angle: float, medium="3 mm glass CP", *, height=0.06, dx=4e-
     tan(phi)). Returns the drop of the top at the wall (m), the final mean slope of the flank
     (deg, from the top at the wall to the toe), the largest surface displacement measure
     (the largest drop of the surface height over x, m) and the final speeds."""
-    mat = _material(medium)
+    mat = _material(medium, dx)
     cfg = SPHConfig(dx=dx, settle_time=0.0, channel_width=channel_width)
     sc = slope_scene(angle, height=height, medium=mat, config=cfg)
     height = sc.meta["height_m"]
@@ -186,8 +186,8 @@ def plate_push(medium="3 mm glass CP", *, length=3.81 * CM, width=2.54 * CM, thi
 
     positive("speed", speed, "m/s")
     positive("depth", depth, "m")
-    mat = _material(medium)
     cfg = config or SPHConfig(dx=dx)
+    mat = _material(medium, cfg.dx)
     plate = ArcLeg(width, 20, length, 0.0, "plate", direction=math.pi / 2)
     z0 = 0.5 * thickness + 0.5 * cfg.dx + 1e-8 * int(realization)
     T = (depth + z0) / speed
