@@ -397,3 +397,23 @@ def test_calibrate_cli_starts_a_li_medium_at_its_shipped_calibration(monkeypatch
     assert json.loads((tmp_path / "d.json").read_text())["poppy LP"]["dx_m"] == pytest.approx(2.5e-3)
     assert main(["sph", "calibrate", "--medium", "poppy LP", "--friction-start-deg", "5"]) == 2
     assert "friction-start-deg" in capsys.readouterr().err
+
+
+def test_calibrations_at_other_spacings_merge_under_other_resolutions():
+    base = {"_meta": {"dx_m": 2.5e-3}, "poppy LP": {"friction_deg": 35.7, "dx_m": 2.5e-3, "converged": True}}
+    new = {"_meta": {"created": "today", "realizations": 2},
+           "poppy LP": {"friction_deg": 36.6, "dx_m": 1.6e-3, "converged": True}}
+    got = calibration.merge_resolutions(base, new)
+    assert got["poppy LP"]["friction_deg"] == 35.7 and "other_resolutions" not in base["poppy LP"]
+    assert got["poppy LP"]["other_resolutions"]["1.6"] == new["poppy LP"] | {"created": "today", "realizations": 2}
+    again = calibration.merge_resolutions(got, {"poppy LP": {"friction_deg": 35.9, "dx_m": 2.5e-3, "converged": True}})
+    assert again["poppy LP"]["friction_deg"] == 35.9 and "1.6" in again["poppy LP"]["other_resolutions"]
+    with pytest.raises(InputError, match="converge"):
+        calibration.merge_resolutions(base, {"poppy LP": {"dx_m": 1e-3, "converged": False}})
+    with pytest.raises(InputError, match="production calibration"):
+        calibration.merge_resolutions(base, {"my sand": {"dx_m": 1e-3, "converged": True}})
+    # the shipped file: every other resolution is a converged calibration of the same model
+    for m, rec in calibration.shipped().items():
+        for key, r in ({} if m == "_meta" else rec.get("other_resolutions", {})).items():
+            assert float(key) == pytest.approx(r["dx_m"] * 1e3) and r["converged"]
+            assert r["dp_match"] == rec["dp_match"] and abs(r["relative_difference"]) <= 0.03

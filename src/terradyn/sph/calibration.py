@@ -229,3 +229,28 @@ def calibrated_spacings(medium: str) -> list[float]:
     if found is None:
         return []
     return sorted({round(found["dx_m"] * 1e3, 4), *(float(k) for k in found.get("other_resolutions", {}))})
+
+
+def merge_resolutions(base: dict, new: dict) -> dict:
+    """``base`` (a calibration file's content: ``terradyn sph calibrate`` output at the
+    production spacing) with the media of ``new`` (the same command's output at another
+    spacing) added under each medium's ``"other_resolutions"``, keyed by the spacing in mm;
+    a calibration at the base's own spacing replaces the medium's record. How the shipped
+    file gets its other resolutions:
+    ``python -c "import json, sys; from terradyn.sph.calibration import merge_resolutions as m; ..."``
+    (docs/sph.md). A medium of ``new`` that did not converge, or that base lacks, is refused."""
+    out = json.loads(json.dumps(base))
+    for m, rec in new.items():
+        if m == "_meta":
+            continue
+        if m not in out:
+            raise InputError("medium", f"{m!r} has no production calibration to add a resolution to")
+        if not rec.get("converged", False):
+            raise InputError("medium", f"the calibration of {m!r} did not converge ({rec.get('note', '')})")
+        rec = dict(rec, **{k: new["_meta"][k] for k in ("created", "realizations") if k in new.get("_meta", {})})
+        if abs(rec["dx_m"] - out[m]["dx_m"]) < 1e-9:
+            rec["other_resolutions"] = out[m].get("other_resolutions", {})
+            out[m] = rec
+        else:
+            out[m].setdefault("other_resolutions", {})[_mm(rec["dx_m"])] = rec
+    return out

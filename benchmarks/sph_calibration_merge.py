@@ -1,0 +1,38 @@
+"""Add plate-test calibrations made at other particle spacings to the shipped calibration
+(issue 17: a medium runs with its calibration at the run's own spacing where one is shipped).
+
+    terradyn sph calibrate --medium "0.3 mm glass CP" --dx-mm 1.6 -o glass16.json
+    python benchmarks/sph_calibration_merge.py glass16.json [more.json ...]
+
+Each medium of each file goes under its ``other_resolutions`` in
+``src/terradyn/data/sph_calibration.json`` (``terradyn.sph.calibration.merge_resolutions``);
+the file is rewritten atomically."""
+from __future__ import annotations
+
+import json
+import sys
+from pathlib import Path
+
+SHIPPED = Path(__file__).parent.parent / "src" / "terradyn" / "data" / "sph_calibration.json"
+
+
+def main(paths: list[str]) -> None:
+    from terradyn.io import atomic_write_text
+    from terradyn.sph.calibration import merge_resolutions
+
+    data = json.loads(SHIPPED.read_text())
+    for p in paths:
+        data = merge_resolutions(data, json.loads(Path(p).read_text()))
+    data["_meta"]["other_resolutions"] = (
+        "calibrations at other particle spacings, under each medium's other_resolutions (key: dx "
+        "in mm): terradyn sph calibrate --medium M --dx-mm D, merged by "
+        "benchmarks/sph_calibration_merge.py; a run at that spacing takes them (terradyn.sph.calibration.shipped_at)")
+    atomic_write_text(SHIPPED, json.dumps(data, indent=1) + "\n")
+    for m, r in data.items():
+        if m != "_meta":
+            extra = ", ".join(f"{k} mm: {v['friction_deg']:g} deg" for k, v in r.get("other_resolutions", {}).items())
+            print(f"{m}: {r['dx_m'] * 1e3:g} mm: {r['friction_deg']:g} deg" + (f"; {extra}" if extra else ""))
+
+
+if __name__ == "__main__":
+    main(sys.argv[1:])
