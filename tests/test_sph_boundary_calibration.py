@@ -417,3 +417,23 @@ def test_calibrations_at_other_spacings_merge_under_other_resolutions():
         for key, r in ({} if m == "_meta" else rec.get("other_resolutions", {})).items():
             assert float(key) == pytest.approx(r["dx_m"] * 1e3) and r["converged"]
             assert r["dp_match"] == rec["dp_match"] and abs(r["relative_difference"]) <= 0.03
+
+
+def test_sph_plate_cli_runs_a_medium_with_its_calibration_at_dx_mm(monkeypatch, capsys):
+    from terradyn.cli import main
+    from terradyn.sph import validation
+
+    base = {"friction_deg": 33.0, "youngs_Pa": 2.5e5, "dx_m": 2.5e-3, "alpha_z_measured_N_per_cm3": 0.35,
+            "relative_difference": 0.0, "dp_match": "plane-strain"}
+    monkeypatch.setattr(calibration, "shipped", lambda: {
+        "poppy LP": dict(base, other_resolutions={"1.6": dict(base, friction_deg=35.5, dx_m=1.6e-3)})})
+    seen = []
+
+    def stop(mat, **kw):
+        seen.append((mat.friction / DEG, kw["config"].dx))
+        raise KeyboardInterrupt
+
+    monkeypatch.setattr(validation, "plate_push", stop)
+    for dx_mm, want in (("1.6", 35.5), ("2", 33.0)):
+        assert main(["sph", "plate", "--medium", "poppy LP", "--dx-mm", dx_mm]) != 0  # stopped once it had them
+        assert seen[-1] == (pytest.approx(want), pytest.approx(float(dx_mm) * 1e-3))

@@ -38,14 +38,16 @@ _BOUNDARY = typer.Option("resolved", "--boundary", help="Leg boundary: resolved 
 
 
 def _material(medium: str, density_kg_m3: float | None, friction_deg: float | None,
-              dilatancy: str = "none", dp_match: str = "plane-strain", rheology: str = "constant"):
-    """The SPH material of the options (:func:`terradyn.models.sph.material`)."""
+              dilatancy: str = "none", dp_match: str = "plane-strain", rheology: str = "constant",
+              dx: float | None = None):
+    """The SPH material of the options (:func:`terradyn.models.sph.material`); ``dx`` (m):
+    the particle spacing it runs at (a medium's calibration there where one is shipped)."""
     from .. import models
     from ..models.sph import material
 
     return material(medium, models.get("sph").check_options(
         {"density_kg_m3": density_kg_m3, "friction_deg": friction_deg, "dilatancy": dilatancy,
-         "dp_match": dp_match, "rheology": rheology}))
+         "dp_match": dp_match, "rheology": rheology, "dx_mm": None if dx is None else dx * 1e3}))
 
 
 @contextmanager
@@ -286,7 +288,7 @@ def plate_cmd(medium: str = _MEDIUM, density_kg_m3: Optional[float] = _DENSITY,
     io.check_plot(plot)
     cfg = default_config(quick, dx=_dx(dx_mm), boundary=boundary)
     r = validation.plate_push(_material(medium, density_kg_m3, friction_deg, dilatancy, dp_match,
-                                        rheology),
+                                        rheology, dx=cfg.dx),
                               speed=speed_cm_s * 1e-2, depth=depth_cm * 1e-2, config=cfg)
     typer.echo(json.dumps({"alpha_z_N_per_cm3": r["alpha_z"] / 1e6,
                            "alpha_z_through_origin_N_per_cm3": r["alpha_z_origin"] / 1e6,
@@ -313,7 +315,7 @@ def legs_cmd(omega: list[float] = typer.Option([0.2], help="Angular speeds, rad/
     from ..sph.solver import check_checkpoint
 
     cfg = _config(quick, dx_mm, 0.2, None, Backend(backend).value)
-    mat = _material(medium, None, None, rheology=rheology)
+    mat = _material(medium, None, None, rheology=rheology, dx=cfg.dx)
     io.check_writable(outdir, "out", directory=True)
     if checkpoint_dir is not None:
         io.check_writable(checkpoint_dir, "checkpoint-dir", directory=True)
