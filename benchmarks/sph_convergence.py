@@ -22,6 +22,7 @@ from __future__ import annotations
 import argparse
 import fcntl
 import json
+import math
 import os
 import platform
 import time
@@ -125,7 +126,16 @@ def _merge_and_write(key: str | None, val: dict | None) -> None:
             res["changes"][name] = _changes(by_dx)
             if ext := _extrapolation(by_dx):
                 res["extrapolation"][name] = ext
-        atomic_write_text(OUT, json.dumps(res, indent=1))
+        atomic_write_text(OUT, json.dumps(_no_nan(res), indent=1, allow_nan=False))
+
+
+def _no_nan(x):
+    """JSON has no NaN: an undefined number (the standard error of a single run) is null."""
+    if isinstance(x, dict):
+        return {k: _no_nan(v) for k, v in x.items()}
+    if isinstance(x, list):
+        return [_no_nan(v) for v in x]
+    return None if isinstance(x, float) and not math.isfinite(x) else x
 
 
 def main() -> None:
