@@ -270,3 +270,45 @@ def test_sweep_cases_carry_the_rheology():
 def test_column_side_walls_checked_before_the_run(args, field, part, no_work, capsys):
     assert main(["sph", "column", "--quick", *args]) == 2
     _one_line_error(capsys, field, part)
+
+
+@pytest.mark.parametrize("value", ["0", "0.5", "60", "nan"])
+def test_bed_pad_checked_before_the_run(value, no_work, capsys):
+    assert main(["sph", "run", "--quick", "--bed-pad-cm", value]) == 2
+    _one_line_error(capsys, "bed-pad-cm", "cm")
+
+
+def test_validate_checks_bed_pad_before_making_the_folder(capsys, tmp_path):
+    out = tmp_path / "v"
+    assert main(["sph", "validate", "--quick", "--out", str(out), "--bed-pad-cm", "0"]) == 2
+    _one_line_error(capsys, "bed-pad-cm", "[1, 50] cm")
+    assert not out.exists()
+
+
+def test_bed_pad_sets_the_leg_bed_and_names_the_sweep_case(monkeypatch):
+    """``bed_pad`` is the bed beyond the leg's path: each side and below it by that much, the
+    default (6 cm) unchanged; a sweep case with it is another case."""
+    import terradyn as td
+    from terradyn import models
+    from terradyn.sph.state import SPHConfig
+    from terradyn.units import CM, DEG
+
+    seen = []
+
+    def spy(leg, traj, i0, mat, *, bed_width, bed_depth, **kw):
+        seen.append((bed_width, bed_depth))
+        raise Started("bed sized")
+
+    monkeypatch.setattr(api, "leg_scene", spy)
+    mot = td.Rotation(omega=2.0, hip_height=2 * CM, theta_start=-80 * DEG, theta_end=80 * DEG, n_theta=41)
+    for pad in (None, 0.06, 0.03):
+        with pytest.raises(Started):
+            api.simulate(td.flat_leg(), mot, "poppy LP", config=SPHConfig(dx=4e-3, bed_pad=pad))
+    (w0, d0), (w6, d6), (w3, d3) = seen
+    assert (w0, d0) == (w6, d6)
+    assert w6 - w3 == pytest.approx(0.06) and d6 - d3 == pytest.approx(0.03)
+    m = models.get("sph")
+    base = {"medium": "poppy LP", "quick": True}
+    assert "bed_pad_cm" not in m.resolve(dict(base))
+    assert m.resolve({**base, "bed_pad_cm": 3.0})["bed_pad_cm"] == 3.0
+    assert "bed_pad" not in SPHConfig().run_items()  # checkpoints written before it still resume

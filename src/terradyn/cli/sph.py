@@ -34,6 +34,7 @@ _DP_MATCH = typer.Option("plane-strain", "--dp-match", help="Drucker-Prager cone
 _RHEOLOGY = typer.Option("constant", "--rheology", help="Friction law: constant (rate-independent, the default) or mu-i (Jop et al. 2006's mu(I) of glass beads on the medium's calibrated friction angle; a Li 2013 medium only; docs/sph.md).")
 _CHANNEL = typer.Option(None, "--channel-width-cm", help="Side walls of a quasi-2D channel this far apart, cm, with Coulomb friction pressed by the out-of-plane stress (default: none, plane strain; Lube et al. 2005's channel: 10).")
 _WALL_FRICTION = typer.Option(None, "--wall-friction-deg", help="Grain-wall friction angle of the side walls, deg, in [0, 60] (default: the medium's friction angle; needs --channel-width-cm).")
+_BED_PAD = typer.Option(None, "--bed-pad-cm", show_default="6; --quick 3", help="Granular bed beyond the leg's path below the surface, cm, in [1, 50] (docs/sph.md 'Bed size').")
 _BOUNDARY = typer.Option("resolved", "--boundary", help="Leg boundary: resolved (sides kept apart, contact at dx/4) or guard (the model before issue 17).")
 
 
@@ -139,6 +140,7 @@ def run_cmd(
     cfl: float = typer.Option(0.2, help="Courant number of the time step."),
     channel_width_cm: Optional[float] = _CHANNEL,
     wall_friction_deg: Optional[float] = _WALL_FRICTION,
+    bed_pad_cm: Optional[float] = _BED_PAD,
     lowpass_hz: Optional[float] = typer.Option(None, help="Zero-phase Butterworth low-pass of the force record, Hz (default: none)."),
     checkpoint: Optional[Path] = typer.Option(None, help="Checkpoint file: written every minute; a rerun resumes from it."),
     snapshots: int = typer.Option(0, help="Number of particle snapshots to keep (evenly over the motion; those in the simulated contact part)."),
@@ -181,7 +183,8 @@ def run_cmd(
         dilatancy=dilatancy, dp_match=dp_match, rheology=rheology,
         thickness_cm=positive("thickness-cm", thickness_cm, "cm"),
         **{k: v for k, v in (("channel_width_cm", channel_width_cm),
-                             ("wall_friction_deg", wall_friction_deg)) if v is not None}))
+                             ("wall_friction_deg", wall_friction_deg),
+                             ("bed_pad_cm", bed_pad_cm)) if v is not None}))
     sph_model.config(opts)
     sph_model.material(medium, opts)
     if compare_rft and density_kg_m3 is not None:

@@ -111,6 +111,7 @@ def validate_cmd(
     omega: float = typer.Option(1.1, help="Angular speed of the leg tests, rad/s (1.1 is 5.5 x fewer steps than 0.2; the rate check is in docs/sph.md)."),
     realizations: Optional[int] = typer.Option(None, show_default="3; --quick 1", help="Runs per leg test (1..20), averaged: the measured curves are means over trials, and single runs scatter by 1-5 % with peaks biased high (docs/sph.md); each run's peak and the standard error go into validation.json."),
     rheology: str = typer.Option("constant", "--rheology", help="Friction law of the column, plate, rig and leg scenes: constant (rate-independent) or mu-i (Jop et al. 2006's mu(I) on each medium's calibrated angle; docs/sph.md)."),
+    bed_pad_cm: Optional[float] = typer.Option(None, "--bed-pad-cm", show_default="6", help="Leg tests: granular bed beyond the leg's path below the surface, cm, in [1, 50] (docs/sph.md 'Bed size')."),
 ):
     """Run the SPH validation scenes and compare with measurements: validation.json (quantity,
     ours, reference, source, difference, verdict) and figures in OUT.
@@ -129,6 +130,7 @@ def validate_cmd(
         choice("scene", s, list(suite.SCENES))
     dx = None if dx_mm is None else in_range("dx-mm", dx_mm, 1.0, 10.0, "mm") * 1e-3
     in_range("omega", omega, 0.01, 10.0, "rad/s")
+    pad = None if bed_pad_cm is None else in_range("bed-pad-cm", bed_pad_cm, 1.0, 50.0, "cm") * 1e-2
     if realizations is not None:
         suite.check_realizations(realizations)  # before the output folder is made
     from ..sph.materials import RHEOLOGIES
@@ -138,13 +140,17 @@ def validate_cmd(
         from ..models import ignored
 
         ignored("realizations", "applies to the leg tests only, and --scene does not include legs")
+    if pad is not None and scene and "legs" not in scene:
+        from ..models import ignored
+
+        ignored("bed-pad-cm", "applies to the leg tests only, and --scene does not include legs")
     if out.exists() and not out.is_dir():
         raise InputError("out", f"{out} exists and is not a directory")
     out.mkdir(parents=True, exist_ok=True)
     res = suite.validate(quick=quick, scenes=tuple(scene) or suite.SCENES, media=medium or None,
                          dx=dx, omega=omega, progress=lambda m: err(f"[dim]{m}[/]"),
                          figures_dir=out, realizations=realizations, rheology=rheology,
-                         store=out / "runs")
+                         store=out / "runs", bed_pad=pad)
     res["summary"] = suite.summary(res)
     _atomic_json(out / "validation.json", res)
     for c in res["checks"]:

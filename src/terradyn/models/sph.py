@@ -27,6 +27,8 @@ OPTIONS = (
     Option("thickness_cm", float, None, "cm", 0, None, lo_open=True, help="Leg thickness (default 0.64)."),
     Option("bed_width_cm", float, None, "cm", 0, None, lo_open=True, help="Bed width (default: from the path)."),
     Option("bed_depth_cm", float, None, "cm", 0, None, lo_open=True, help="Bed depth (default: from the path)."),
+    Option("bed_pad_cm", float, None, "cm", 1, 50,
+           help="Bed beyond the leg's path below the surface (default 6; quick 3; docs/sph.md 'Bed size')."),
     Option("boundary", str, None, choices=("resolved", "guard"), help="Leg boundary model (default resolved)."),
     Option("friction_deg", float, None, "deg", 0, 80, lo_open=True, help="Friction angle (default: the medium's shipped plate-test calibration, else its repose angle)."),
     Option("density_kg_m3", float, None, "kg/m^3", 0, None, lo_open=True, help="Your own medium's bulk density (needs friction_deg)."),
@@ -73,11 +75,14 @@ def config(opts: dict, field=lambda k: k.replace("_", "-")):
         kw["channel_width"] = opts["channel_width_cm"] * CM
     if "wall_friction_deg" in opts:
         kw["wall_friction"] = math.radians(opts["wall_friction_deg"])
+    if "bed_pad_cm" in opts:
+        kw["bed_pad"] = opts["bed_pad_cm"] * CM
     try:
         cfg = SPHConfig(dx=dx, **kw)
     except InputError as e:
         f = {"dx": "dx_mm", "settle-time": "settle_time_s", "lowpass": "lowpass_hz",
-             "channel-width": "channel_width_cm", "wall-friction": "wall_friction_deg"}.get(
+             "channel-width": "channel_width_cm", "wall-friction": "wall_friction_deg",
+             "bed-pad": "bed_pad_cm"}.get(
             e.field, e.field.replace("-", "_"))
         raise InputError(field(f), str(e).split(": ", 1)[-1]) from None
     if "backend" in opts:
@@ -167,7 +172,7 @@ def _resolve(opts: dict) -> dict:
         out["settle_time_s"] = _canon(cfg.settle_time)
     if cfg.lowpass_hz is not None:
         out["lowpass_hz"] = _canon(cfg.lowpass_hz)
-    for k in ("bed_width_cm", "bed_depth_cm", "channel_width_cm", "wall_friction_deg"):
+    for k in ("bed_width_cm", "bed_depth_cm", "bed_pad_cm", "channel_width_cm", "wall_friction_deg"):
         if k in o:
             out[k] = o[k]
     return out

@@ -88,7 +88,7 @@ def simulate_run(leg: Leg, motion: Rotation | PlanarMotion, medium: str | Granul
     res = None
     meta = {}
     if i0 >= 0 and i1 > i0:
-        pad = 0.03 if quick else 0.06
+        pad = cfg.bed_pad if cfg.bed_pad is not None else (0.03 if quick else 0.06)
         w_auto, d_auto = bed_extent(leg, traj, i0, i1, pad)
         bw = bed_width or w_auto
         bd = bed_depth or d_auto

@@ -59,7 +59,9 @@ class SPHConfig:
     channel_width: side walls of a quasi-2D channel this far apart (m; None: plane strain
     without walls), each with Coulomb friction wall_friction (rad; None: the material's
     friction angle, walls as rough as the medium) pressed by the out-of-plane stress
-    (:func:`terradyn.sph.physics._kick_one`)."""
+    (:func:`terradyn.sph.physics._kick_one`); bed_pad: granular bed around the leg's path
+    below the surface in the leg scenes (m; None: 6 cm, 3 cm with ``quick``; see "Bed size"
+    in docs/sph.md)."""
 
     dx: float = 2.5e-3
     hdx: float = 1.3
@@ -77,6 +79,7 @@ class SPHConfig:
     contact_gap: float | None = None
     channel_width: float | None = None
     wall_friction: float | None = None
+    bed_pad: float | None = None
 
     def __post_init__(self):
         positive("dx", self.dx, "m")
@@ -98,6 +101,8 @@ class SPHConfig:
             positive("channel-width", self.channel_width, "m")
         if self.wall_friction is not None:
             in_range("wall-friction", self.wall_friction, 0.0, math.radians(60.0), "rad")
+        if self.bed_pad is not None:
+            in_range("bed-pad", self.bed_pad, 0.01, 0.5, "m")
         if self.backend not in BACKENDS:
             raise InputError("backend", f"must be one of {', '.join(map(repr, BACKENDS))}, "
                                         f"got {self.backend!r}")
@@ -112,7 +117,7 @@ class SPHConfig:
         checkpoints written before they existed still resume)."""
         d = asdict(self)
         d.pop("backend")
-        for k in ("channel_width", "wall_friction"):
+        for k in ("channel_width", "wall_friction", "bed_pad"):
             if d[k] is None:
                 d.pop(k)
         return d

@@ -333,7 +333,7 @@ def leg_vs_measured(name: str, medium, *, omega=1.1, dx=4e-3, config=None, progr
 # ------------------------------------------------------------------------------- the run
 def validate(*, quick=False, scenes=SCENES, media=None, dx=None, omega=1.1, progress=None,
              figures_dir=None, realizations: int | None = None, rheology: str = "constant",
-             store=None) -> dict:
+             store=None, bed_pad: float | None = None) -> dict:
     """Run the scenes; returns {"checks": [Check.describe()...], "details": {...}}. ``quick``:
     4 mm particles, columns a = 1 only, the rig's 3 x 5 subset, the flat leg only.
     ``realizations``: runs per leg test, averaged (:func:`leg_vs_measured`; None: 3, or 1 when
@@ -342,8 +342,11 @@ def validate(*, quick=False, scenes=SCENES, media=None, dx=None, omega=1.1, prog
     "constant" (rate-independent friction, the model's default) or "mu-i" (Jop et al. 2006's
     mu(I) on top of each medium's calibrated friction angle, :func:`from_medium`) for the
     column, plate, rig and leg scenes. ``store``: a directory for the leg runs
-    (:func:`leg_run`): a rerun reads the finished ones and resumes the one it was in."""
+    (:func:`leg_run`): a rerun reads the finished ones and resumes the one it was in.
+    ``bed_pad``: the leg scenes' bed beyond the leg's path (m; None: the solver's default,
+    :class:`SPHConfig`)."""
     from . import plots, validation
+    from .state import SPHConfig
     from .materials import MATERIALS, RHEOLOGIES, from_medium
 
     choice("rheology", rheology, list(RHEOLOGIES))
@@ -443,6 +446,7 @@ def validate(*, quick=False, scenes=SCENES, media=None, dx=None, omega=1.1, prog
             for leg in (("flat",) if quick else LEGS):
                 say(f"{leg} leg, {m}")
                 r = leg_vs_measured(leg, material(m), omega=omega, dx=dx,
+                                    config=None if bed_pad is None else SPHConfig(dx=dx, bed_pad=bed_pad),
                                     realizations=realizations, store=store)
                 if r["stored"]:
                     say(f"{leg} leg, {m}: {r['stored']} of {r['realizations']} runs read from {store}")
@@ -467,7 +471,8 @@ def validate(*, quick=False, scenes=SCENES, media=None, dx=None, omega=1.1, prog
             "settings": {"quick": quick, "dx_m": dx, "omega_rad_s": omega, "scenes": list(scenes),
                          "leg_realizations": int(realizations),
                          "media": media, "dp_match": sorted({material(m).dp_match for m in media}),
-                         "rheology": rheology}}
+                         "rheology": rheology,
+                         **({} if bed_pad is None else {"bed_pad_m": bed_pad})}}
 
 
 def summary(result: dict) -> dict:

@@ -1,0 +1,140 @@
+"""Bed size of the SPH leg scenes (issue 17, item 5: a shorter run is allowed "when shown not to
+change the forces"): the three legs of the rotating-leg test (Li 2013 Fig. S5; hip 2 cm,
+-135..135 deg, omega 1.1 rad/s) with the granular bed reaching --pads cm beyond the leg's path
+below the surface (``SPHConfig.bed_pad``; 6 cm is the default), each the mean curve of
+--realizations runs (run j with the hip j x 10 nm higher, as in ``sph validate``).
+
+    python benchmarks/sph_bed_size.py --medium "poppy LP" [--dx-mm 2.5] [--pads 6 4 3]
+        [--realizations 2] [--legs flat c reverse-c] [--store .sph-runs]
+    python benchmarks/sph_bed_size.py --summarize
+
+Records per run: peaks of Fz (lift) and Fx (thrust), particles, steps and wall time; the
+summary gives, per medium, leg and pad, the change of each mean-curve peak from the 6 cm bed,
+the RMS difference of the mean curves from the 6 cm bed over the angles where the leg is
+near the bed (1 deg steps; as a
+fraction of the 6 cm peak), and the run-to-run scatter of the peaks at 6 cm as the yardstick.
+Finished runs are kept in --store (``terradyn.sph.suite.leg_run``) and in the result file, so
+the study resumes; two studies (one per medium) may run at once, each merging under a lock
+into benchmarks/results/sph_bed_size.json. A study, not a timing benchmark: wall times are
+recorded as run."""
+from __future__ import annotations
+
+import argparse
+import fcntl
+import json
+import os
+import platform
+import time
+from pathlib import Path
+
+OUT = Path(__file__).parent / "results" / "sph_bed_size.json"
+REF_PAD_CM = 6.0
+
+
+def _merge(update) -> dict:
+    """Apply ``update(data)`` to the result file under an exclusive lock; returns the data."""
+    OUT.parent.mkdir(parents=True, exist_ok=True)
+    with open(OUT.with_suffix(".lock"), "w") as lock:
+        fcntl.flock(lock, fcntl.LOCK_EX)
+        data = json.loads(OUT.read_text()) if OUT.exists() else {"runs": {}}
+        update(data)
+        from terradyn.io import atomic_write_text
+
+        atomic_write_text(OUT, json.dumps(data, indent=1, allow_nan=False) + "\n")
+        return data
+
+
+def summarize(data: dict) -> dict:
+    import numpy as np
+
+    runs = data["runs"]
+    groups: dict[tuple, list] = {}
+    for r in runs.values():
+        groups.setdefault((r["medium"], r["dx_mm"], r["leg"], r["pad_cm"]), []).append(r)
+    out = {}
+    for (medium, dx, leg, pad), rs in sorted(groups.items()):
+        ref = groups.get((medium, dx, leg, REF_PAD_CM))
+        if not ref:
+            continue
+        n = min(len(rs), len(ref))
+        rs = sorted(rs, key=lambda r: r["j"])[:n]
+        ref = sorted(ref, key=lambda r: r["j"])[:n]
+        row = {"realizations": n, "particles": rs[0]["particles"],
+               "particles_ref": ref[0]["particles"],
+               "wall_s_mean": round(float(np.mean([r["wall_s"] for r in rs])), 1),
+               "wall_s_ref_mean": round(float(np.mean([r["wall_s"] for r in ref])), 1)}
+        for comp, name in (("Fz", "lift"), ("Fx", "thrust")):
+            cur = np.mean([r["curve_" + comp] for r in rs], axis=0)
+            base = np.mean([r["curve_" + comp] for r in ref], axis=0)
+            p_cur, p_ref = float(cur.max()), float(base.max())
+            m = (cur != 0) | (base != 0)  # the leg near the bed in either
+            runs_ref = [max(r["curve_" + comp]) for r in ref]
+            row[name] = {"peak_N": round(p_cur, 4), "peak_ref_N": round(p_ref, 4),
+                         "change_pct": round(100 * (p_cur / p_ref - 1), 2),
+                         "rms_diff_over_peak_pct": round(100 * float(np.sqrt(np.mean((cur - base)[m] ** 2))) / p_ref, 2),
+                         "ref_run_spread_pct": round(100 * (max(runs_ref) - min(runs_ref)) / p_ref, 2) if n > 1 else None}
+        out[f"{medium}|{dx:g}mm|{leg}|pad {pad:g}cm"] = row
+    return out
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--medium", default="poppy LP")
+    ap.add_argument("--dx-mm", type=float, default=2.5)
+    ap.add_argument("--pads", type=float, nargs="+", default=[6.0, 4.0, 3.0], help="cm")
+    ap.add_argument("--legs", nargs="+", default=["flat", "c", "reverse-c"])
+    ap.add_argument("--realizations", type=int, default=2)
+    ap.add_argument("--omega", type=float, default=1.1)
+    ap.add_argument("--store", default=".sph-runs")
+    ap.add_argument("--summarize", action="store_true")
+    a = ap.parse_args()
+    if a.summarize:
+        d = _merge(lambda data: data.__setitem__("summary", summarize(data)))
+        print(json.dumps(d["summary"], indent=1))
+        return
+
+    import numpy as np
+
+    import terradyn as td
+    from terradyn.sph.materials import from_medium
+    from terradyn.sph.state import SPHConfig
+    from terradyn.sph.suite import leg_run
+    from terradyn.units import CM, DEG
+
+    mat = from_medium(a.medium, dx=a.dx_mm * 1e-3)
+    for pad in a.pads:
+        cfg = SPHConfig(dx=a.dx_mm * 1e-3, bed_pad=pad * CM)
+        for leg in a.legs:
+            for j in range(a.realizations):
+                key = f"{a.medium}|{a.dx_mm:g}mm|{leg}|pad {pad:g}cm|j{j}"
+                if OUT.exists() and key in json.loads(OUT.read_text())["runs"]:
+                    continue
+                mot = td.Rotation(omega=a.omega, hip_height=2 * CM + 1e-8 * j, theta_start=-135 * DEG,
+                                  theta_end=135 * DEG, n_theta=271)
+                t0 = time.perf_counter()
+                ds, stored = leg_run(leg, mot, mat, cfg, store=a.store)
+                wall = time.perf_counter() - t0
+                run = json.loads(ds.attrs["input"])["run"]
+                th = ds.theta.values
+                row = {"medium": a.medium, "dx_mm": a.dx_mm, "leg": leg, "pad_cm": pad, "j": j,
+                       "friction_deg": round(float(np.degrees(mat.friction)), 3),
+                       "omega_rad_s": a.omega, "particles": int(run["particles"]), "steps": int(run["steps"]),
+                       "bed_width_m": run["bed_width_m"], "bed_depth_m": run["bed_depth_m"],
+                       "wall_s": round(float(run["wall_seconds"]) if stored else wall, 1),
+                       "theta_deg": [float(t) for t in th],
+                       "curve_Fz": [round(float(v), 5) for v in np.interp(th, ds.theta.values, ds.Fz.values)],
+                       "curve_Fx": [round(float(v), 5) for v in np.interp(th, ds.theta.values, ds.Fx.values)],
+                       "peak_lift_N": round(float(ds.Fz.values.max()), 4),
+                       "peak_thrust_N": round(float(ds.Fx.values.max()), 4)}
+
+                def put(data, key=key, row=row):
+                    data["runs"][key] = row
+                    data["machine"] = f"{platform.machine()}, {os.cpu_count()} cores (shared)"
+                    data["command"] = "python benchmarks/sph_bed_size.py --medium M"
+                _merge(put)
+                print(key, row["particles"], row["steps"], row["wall_s"], row["peak_lift_N"],
+                      row["peak_thrust_N"], flush=True)
+
+
+if __name__ == "__main__":
+    main()
