@@ -40,8 +40,21 @@ def _merge(update) -> dict:
         update(data)
         from terradyn.io import atomic_write_text
 
-        atomic_write_text(OUT, json.dumps(data, indent=1, allow_nan=False) + "\n")
+        atomic_write_text(OUT, _dump(data))
         return data
+
+
+def _dump(data: dict) -> str:
+    """JSON text with one line per run (each holds two 271-sample curves)."""
+    parts = []
+    for k, v in data.items():
+        if k in ("runs", "plate_runs"):
+            inner = ",\n".join(f"  {json.dumps(rk)}: {json.dumps(rv, allow_nan=False)}"
+                               for rk, rv in sorted(v.items()))
+            parts.append(f' {json.dumps(k)}: {{\n{inner}\n }}')
+        else:
+            parts.append(f" {json.dumps(k)}: {json.dumps(v, indent=1, allow_nan=False)}")
+    return "{\n" + ",\n".join(parts) + "\n}\n"
 
 
 def summarize(data: dict) -> dict:
@@ -77,6 +90,61 @@ def summarize(data: dict) -> dict:
     return out
 
 
+def summarize_plate(data: dict) -> dict:
+    """Per medium and bed: the plate test's alpha_z (mean of the runs, N/cm^3) and its change
+    from the calibration's bed (``pad_cm`` None)."""
+    import numpy as np
+
+    groups: dict[tuple, list] = {}
+    for r in data.get("plate_runs", {}).values():
+        groups.setdefault((r["medium"], r["dx_mm"], r["pad_cm"] or 0.0), []).append(r)
+    out = {}
+    for (medium, dx, pad), rs in sorted(groups.items()):
+        ref = groups.get((medium, dx, 0.0))
+        a = [r["alpha_z_N_per_cm3"] for r in rs]
+        row = {"runs": len(rs), "particles": rs[0]["particles"],
+               "bed_width_m": rs[0]["bed_width_m"], "bed_depth_m": rs[0]["bed_depth_m"],
+               "alpha_z_N_per_cm3": round(float(np.mean(a)), 4),
+               "run_spread_pct": round(100 * (max(a) - min(a)) / float(np.mean(a)), 2) if len(a) > 1 else None,
+               "wall_s_mean": round(float(np.mean([r["wall_s"] for r in rs])), 1)}
+        if ref:
+            a0 = float(np.mean([r["alpha_z_N_per_cm3"] for r in ref]))
+            row["change_from_calibration_bed_pct"] = round(100 * (float(np.mean(a)) / a0 - 1), 2)
+        out[f"{medium}|{dx:g}mm|" + ("calibration bed" if pad == 0.0 else f"pad {pad:g}cm")] = row
+    return out
+
+
+def plate_study(a) -> None:
+    """The plate test (the calibration, ``terradyn.sph.calibration.plate_slope``) in the
+    calibration's bed and in beds reaching --plate-pads cm beyond the plate's edges and below
+    its deepest point."""
+    import numpy as np
+
+    from terradyn.sph.calibration import plate_slope
+    from terradyn.sph.materials import from_medium
+    from terradyn.units import CM, N_PER_CM3
+
+    mat = from_medium(a.medium, dx=a.dx_mm * 1e-3)
+    for pad in [None, *a.plate_pads]:
+        for j in range(a.realizations):
+            key = f"{a.medium}|{a.dx_mm:g}mm|" + ("calibration bed" if pad is None else f"pad {pad:g}cm") + f"|j{j}"
+            if OUT.exists() and key in json.loads(OUT.read_text()).get("plate_runs", {}):
+                continue
+            r = plate_slope(mat, dx=a.dx_mm * 1e-3, first=j, bed_pad=None if pad is None else pad * CM)
+            run = json.loads(r["series"].attrs["input"])["run"]
+            row = {"medium": a.medium, "dx_mm": a.dx_mm, "pad_cm": pad, "j": j,
+                   "friction_deg": round(float(np.degrees(mat.friction)), 3),
+                   "alpha_z_N_per_cm3": round(r["alpha_z"] / N_PER_CM3, 5),
+                   "slope_N_per_cm3": round(r["slope"] / N_PER_CM3, 5),
+                   "particles": int(run["particles"]), "bed_width_m": run["bed_width_m"],
+                   "bed_depth_m": run["bed_depth_m"], "wall_s": round(r["wall_s"], 1)}
+
+            def put(data, key=key, row=row):
+                data.setdefault("plate_runs", {})[key] = row
+            _merge(put)
+            print(key, row["particles"], row["wall_s"], row["alpha_z_N_per_cm3"], flush=True)
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--medium", default="poppy LP")
@@ -86,15 +154,24 @@ def main() -> None:
     ap.add_argument("--realizations", type=int, default=2)
     ap.add_argument("--omega", type=float, default=1.1)
     ap.add_argument("--store", default=".sph-runs")
+    ap.add_argument("--plate-pads", type=float, nargs="*", default=None,
+                    help="cm; run the plate test (calibration bed and these) instead of the legs")
     ap.add_argument("--summarize", action="store_true")
     a = ap.parse_args()
     if a.summarize:
-        d = _merge(lambda data: data.__setitem__("summary", summarize(data)))
-        print(json.dumps(d["summary"], indent=1))
+        def upd(data):
+            data["summary"] = summarize(data)
+            if data.get("plate_runs"):
+                data["summary_plate"] = summarize_plate(data)
+        d = _merge(upd)
+        print(json.dumps({k: d[k] for k in ("summary", "summary_plate") if k in d}, indent=1))
         return
 
     import numpy as np
 
+    if a.plate_pads is not None:
+        plate_study(a)
+        return
     import terradyn as td
     from terradyn.sph.materials import from_medium
     from terradyn.sph.state import SPHConfig

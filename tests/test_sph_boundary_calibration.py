@@ -65,7 +65,7 @@ def test_calibration_search_finds_the_friction_angle_of_a_monotone_plate_model(m
     # recover the phi that gives the target slope, from the repose angle, in a few runs
     calls = []
 
-    def fake(mat, dx, config=None, realizations=1):
+    def fake(mat, dx, config=None, realizations=1, bed_pad=None):
         calls.append(mat.friction)
         return {"alpha_z": 0.8 * mat.density * 9.81 * calibration.bearing_nq(mat.friction)}
 
@@ -79,7 +79,7 @@ def test_calibration_search_finds_the_friction_angle_of_a_monotone_plate_model(m
 
 
 def test_calibration_reports_a_target_it_cannot_reach(monkeypatch):
-    monkeypatch.setattr(calibration, "plate_slope", lambda mat, dx, config=None, realizations=1: {"alpha_z": 1e3})
+    monkeypatch.setattr(calibration, "plate_slope", lambda mat, dx, config=None, realizations=1, bed_pad=None: {"alpha_z": 1e3})
     cal = calibration.calibrate_friction(materials.from_medium("poppy LP"), 3.5e5, max_evals=4)
     assert not cal.converged and cal.note
 
@@ -277,7 +277,7 @@ def test_validate_averages_three_runs_unless_quick_or_told(monkeypatch):
     # the full form compares the mean of three runs with the measured trial means; --quick one run
     seen = []
 
-    def fake(name, medium, *, omega, dx, realizations, store=None):
+    def fake(name, medium, *, omega, dx, realizations, store=None, config=None):
         seen.append(realizations)
         raise StopIteration  # no leg is run: only the count handed down matters
 
@@ -397,6 +397,28 @@ def test_calibrate_cli_starts_a_li_medium_at_its_shipped_calibration(monkeypatch
     assert json.loads((tmp_path / "d.json").read_text())["poppy LP"]["dx_m"] == pytest.approx(2.5e-3)
     assert main(["sph", "calibrate", "--medium", "poppy LP", "--friction-start-deg", "5"]) == 2
     assert "friction-start-deg" in capsys.readouterr().err
+
+
+def test_calibrate_cli_plate_bed_pad_reaches_the_search_and_is_checked_first(monkeypatch, tmp_path, capsys):
+    from terradyn.cli import main
+
+    pads = []
+
+    def fake(mat, target, **kw):
+        pads.append(kw["bed_pad"])
+        return calibration.Calibration(mat.name, mat.friction / DEG, target / N_PER_CM3, target / N_PER_CM3,
+                                       kw["dx"], converged=True, friction_se_deg=0.0)
+
+    monkeypatch.setattr(calibration, "calibrate_friction", fake)
+    out = tmp_path / "c.json"
+    assert main(["sph", "calibrate", "--medium", "poppy LP", "--plate-bed-pad-cm", "12", "-o", str(out)]) == 0
+    assert pads == [pytest.approx(0.12)]
+    assert json.loads(out.read_text())["_meta"]["plate_test"]["bed_pad_m"] == pytest.approx(0.12)
+    assert main(["sph", "calibrate", "--medium", "poppy LP", "-o", str(tmp_path / "d.json")]) == 0
+    assert pads[-1] is None
+    assert main(["sph", "calibrate", "--medium", "poppy LP", "--plate-bed-pad-cm", "0.5",
+                 "-o", str(tmp_path / "e.json")]) == 2
+    assert "plate-bed-pad-cm" in capsys.readouterr().err and not (tmp_path / "e.json").exists()
 
 
 def test_calibrations_at_other_spacings_merge_under_other_resolutions():

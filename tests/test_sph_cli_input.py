@@ -312,3 +312,27 @@ def test_bed_pad_sets_the_leg_bed_and_names_the_sweep_case(monkeypatch):
     assert "bed_pad_cm" not in m.resolve(dict(base))
     assert m.resolve({**base, "bed_pad_cm": 3.0})["bed_pad_cm"] == 3.0
     assert "bed_pad" not in SPHConfig().run_items()  # checkpoints written before it still resume
+
+
+def test_plate_bed_pad_sets_the_plate_bed_and_is_checked(monkeypatch):
+    """The plate test's ``bed_pad``: the bed reaches that far beyond the plate's edges and
+    below its deepest point; None keeps the calibration's bed; out of range refused."""
+    from terradyn.errors import InputError
+    from terradyn.units import CM
+
+    seen = []
+
+    def spy(leg, traj, i0, mat, *, bed_width, bed_depth, **kw):
+        seen.append((bed_width, bed_depth))
+        raise Started("bed sized")
+
+    monkeypatch.setattr(api, "leg_scene", spy)
+    for pad in (None, 0.12):
+        with pytest.raises(Started):
+            validation.plate_push(dx=4e-3, depth=0.04, bed_pad=pad)
+    (w0, d0), (w12, d12) = seen
+    L = 3.81 * CM
+    assert (w0, d0) == pytest.approx((max(6 * L, 0.15), 0.04 + max(2 * L, 0.04)))
+    assert (w12, d12) == pytest.approx((L + 0.24, 0.04 + 0.12))
+    with pytest.raises(InputError, match="bed-pad"):
+        validation.plate_push(bed_pad=0.005)

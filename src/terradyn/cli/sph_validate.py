@@ -26,6 +26,7 @@ def calibrate_cmd(
     tol: float = typer.Option(0.03, help="Relative tolerance on the plate slope."),
     realizations: int = typer.Option(2, help="Plate runs averaged per friction angle (single runs scatter by about 10 %)."),
     max_evals: int = typer.Option(6, help="Most friction angles tried per medium."),
+    plate_bed_pad_cm: Optional[float] = typer.Option(None, "--plate-bed-pad-cm", show_default="the calibration bed: 6 plate lengths wide, 2 below", help="Granular bed beyond the plate's edges and below its deepest point, cm, in [1, 50] (docs/sph.md 'Bed size')."),
     out: Optional[Path] = typer.Option(None, "--out", "-o", help="Write the calibration JSON here (default: stdout)."),
 ):
     """Calibrate the SPH friction angle of a medium on its plate test (Li 2013 Table S3).
@@ -52,6 +53,7 @@ def calibrate_cmd(
     integer("realizations", realizations, 1)
     youngs = in_range("youngs-mpa", youngs_mpa, 0.05, 100.0, "MPa") * 1e6
     integer("max-evals", max_evals, 2)
+    bed_pad = None if plate_bed_pad_cm is None else in_range("plate-bed-pad-cm", plate_bed_pad_cm, 1.0, 50.0, "cm") * 1e-2
     if out is not None:
         from ..io import check_output
 
@@ -80,14 +82,15 @@ def calibrate_cmd(
                 start = from_medium(m).friction / DEG
             jobs.append((from_medium(m, friction_deg=start, youngs=youngs), MEDIA[m].alpha_z_plate))
     result = {"_meta": {"what": "SPH friction angles calibrated on the plate test (terradyn sph calibrate)",
-                        "plate_test": PLATE_TEST, "dx_m": dx, "realizations": realizations,
+                        "plate_test": PLATE_TEST | ({} if bed_pad is None else {"bed_pad_m": bed_pad}),
+                        "dx_m": dx, "realizations": realizations,
                         "terradyn_version": __version__,
                         "created": datetime.datetime.now(datetime.timezone.utc).isoformat(timespec="seconds"),
                         "machine": platform.platform()}}
     for mat, target in jobs:
         err(f"calibrating {mat.name}: measured alpha_z = {target / N_PER_CM3:g} N/cm^3")
         cal = calibrate_friction(mat, target, dx=dx, tol=tol, realizations=realizations,
-                                 max_evals=max_evals,
+                                 max_evals=max_evals, bed_pad=bed_pad,
                                  report=lambda p, a: err(f"  phi = {p:.2f} deg -> alpha_z = {a:.4f} N/cm^3"))
         result[mat.name] = cal.describe() | {"density_kg_m3": mat.density, "youngs_Pa": mat.youngs,
                                              "dp_match": mat.dp_match}

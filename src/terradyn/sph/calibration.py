@@ -46,18 +46,20 @@ def bearing_nq(phi: float) -> float:
     return math.exp(math.pi * t) * math.tan(math.pi / 4 + phi / 2) ** 2
 
 
-def plate_slope(mat, *, dx: float = 4e-3, config=None, realizations: int = 1, first: int = 0) -> dict:
+def plate_slope(mat, *, dx: float = 4e-3, config=None, realizations: int = 1, first: int = 0,
+                bed_pad: float | None = None) -> dict:
     """The SPH plate test (:func:`terradyn.sph.validation.plate_push`, :data:`PLATE_TEST`)
     for a :class:`~terradyn.sph.materials.GranularMaterial`, averaged over ``realizations``
     runs (physically identical starts, see plate_push's ``realization``), numbered from
-    ``first`` (so that runs ``first``, ``first + 1``, ... add to an earlier call's).
+    ``first`` (so that runs ``first``, ``first + 1``, ... add to an earlier call's);
+    ``bed_pad`` (m) as in plate_push (None: the calibration's bed).
 
     Returns ``alpha_z`` (N/m^3): the RFT-consistent coefficient, the least-squares fit of
     sigma = alpha |z| through the origin over depths 1-4 cm (RFT applies alpha that way; the
     SPH stress-depth curve has an intercept, the plate's own bearing term 0.5 rho g B N_gamma
     plus its mobilisation, and a free slope-and-intercept fit trades one for the other from
     run to run); also each run's value, the free fit's slope and intercept (Pa), the wall
-    time and the last run's depth and stress."""
+    time and the last run's depth, stress and force series."""
     import time
 
     import numpy as np
@@ -71,7 +73,7 @@ def plate_slope(mat, *, dx: float = 4e-3, config=None, realizations: int = 1, fi
     for k in range(int(first), int(first) + int(realizations)):
         r = plate_push(mat, speed=PLATE_TEST["speed_m_s"], depth=PLATE_TEST["depth_m"],
                        n_samples=PLATE_TEST["n_samples"], fit_from=PLATE_TEST["fit_from_m"],
-                       config=cfg, realization=k)
+                       config=cfg, realization=k, bed_pad=bed_pad)
         d, st = r["depth"], r["stress"]
         m = d > PLATE_TEST["fit_from_m"]
         slope, icpt = np.polyfit(d[m], st[m], 1)
@@ -81,7 +83,7 @@ def plate_slope(mat, *, dx: float = 4e-3, config=None, realizations: int = 1, fi
     return {"alpha_z": float(np.mean(alphas)), "alphas": alphas,
             "slope": float(np.mean(slopes)), "slopes": slopes,
             "intercept_Pa": float(np.mean(icpts)), "wall_s": time.perf_counter() - t0,
-            "depth": d, "stress": st}
+            "depth": d, "stress": st, "series": r["series"]}
 
 
 @dataclass
@@ -114,7 +116,8 @@ class Calibration:
 
 def calibrate_friction(mat, alpha_z_measured: float, *, dx: float = 4e-3, tol: float = 0.03,
                        max_evals: int = 6, realizations: int = 1, config=None,
-                       report: Callable[[float, float], None] | None = None) -> Calibration:
+                       report: Callable[[float, float], None] | None = None,
+                       bed_pad: float | None = None) -> Calibration:
     """The friction angle at which the SPH plate test of ``mat`` (a GranularMaterial: its
     density, stiffness and the rest are kept) gives ``alpha_z_measured`` (N/m^3).
 
@@ -124,7 +127,9 @@ def calibrate_friction(mat, alpha_z_measured: float, *, dx: float = 4e-3, tol: f
     bearing-capacity scaling N_q(phi), then by the fit, until the estimate moves less than
     0.25 deg (or ``max_evals`` plate tests). Converged: the fitted slope at the estimate is the
     target and the nearest evaluation is within ``tol`` + the scatter. ``report(phi_deg,
-    alpha_z_N_per_cm3)`` after each test (about 20 s each at dx = 4 mm on 2 cores)."""
+    alpha_z_N_per_cm3)`` after each test (about 20 s each at dx = 4 mm on 2 cores).
+    ``bed_pad`` (m): the plate test's bed beyond the plate (:func:`plate_slope`; None: the
+    calibration's bed)."""
     import numpy as np
 
     target = positive("alpha_z_measured", alpha_z_measured, "N/m^3")
@@ -134,7 +139,7 @@ def calibrate_friction(mat, alpha_z_measured: float, *, dx: float = 4e-3, tol: f
 
     def f(phi_deg):
         a = plate_slope(mat.with_(friction=phi_deg * DEG), dx=dx, config=config,
-                        realizations=realizations)["alpha_z"]
+                        realizations=realizations, bed_pad=bed_pad)["alpha_z"]
         pts.append((phi_deg, math.log(a / target) if a > 0 else -10.0))
         if report:
             report(phi_deg, a / N_PER_CM3)
