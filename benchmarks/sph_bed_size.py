@@ -63,10 +63,11 @@ def summarize(data: dict) -> dict:
     runs = data["runs"]
     groups: dict[tuple, list] = {}
     for r in runs.values():
-        groups.setdefault((r["medium"], r["dx_mm"], r["leg"], r["pad_cm"]), []).append(r)
+        groups.setdefault((r["medium"], r["dx_mm"], r["leg"], r["pad_cm"], r.get("friction_set_deg") or 0.0),
+                          []).append(r)
     out = {}
-    for (medium, dx, leg, pad), rs in sorted(groups.items()):
-        ref = groups.get((medium, dx, leg, REF_PAD_CM))
+    for (medium, dx, leg, pad, phi), rs in sorted(groups.items()):
+        ref = groups.get((medium, dx, leg, REF_PAD_CM, 0.0))
         if not ref:
             continue
         n = min(len(rs), len(ref))
@@ -86,7 +87,7 @@ def summarize(data: dict) -> dict:
                          "change_pct": round(100 * (p_cur / p_ref - 1), 2),
                          "rms_diff_over_peak_pct": round(100 * float(np.sqrt(np.mean((cur - base)[m] ** 2))) / p_ref, 2),
                          "ref_run_spread_pct": round(100 * (max(runs_ref) - min(runs_ref)) / p_ref, 2) if n > 1 else None}
-        out[f"{medium}|{dx:g}mm|{leg}|pad {pad:g}cm"] = row
+        out[f"{medium}|{dx:g}mm|{leg}|pad {pad:g}cm" + (f"|phi {phi:g}" if phi else "")] = row
     return out
 
 
@@ -154,6 +155,9 @@ def main() -> None:
     ap.add_argument("--realizations", type=int, default=2)
     ap.add_argument("--omega", type=float, default=1.1)
     ap.add_argument("--store", default=".sph-runs")
+    ap.add_argument("--friction-deg", type=float, default=None,
+                    help="legs: this friction angle instead of the shipped calibration's "
+                         "(e.g. one calibrated in a larger plate bed, sph calibrate --plate-bed-pad-cm)")
     ap.add_argument("--plate-pads", type=float, nargs="*", default=None,
                     help="cm; run the plate test (calibration bed and these) instead of the legs")
     ap.add_argument("--summarize", action="store_true")
@@ -178,12 +182,13 @@ def main() -> None:
     from terradyn.sph.suite import leg_run
     from terradyn.units import CM, DEG
 
-    mat = from_medium(a.medium, dx=a.dx_mm * 1e-3)
+    mat = from_medium(a.medium, dx=a.dx_mm * 1e-3, friction_deg=a.friction_deg)
     for pad in a.pads:
         cfg = SPHConfig(dx=a.dx_mm * 1e-3, bed_pad=pad * CM)
         for leg in a.legs:
             for j in range(a.realizations):
-                key = f"{a.medium}|{a.dx_mm:g}mm|{leg}|pad {pad:g}cm|j{j}"
+                key = (f"{a.medium}|{a.dx_mm:g}mm|{leg}|pad {pad:g}cm"
+                       + ("" if a.friction_deg is None else f"|phi {a.friction_deg:g}") + f"|j{j}")
                 if OUT.exists() and key in json.loads(OUT.read_text())["runs"]:
                     continue
                 mot = td.Rotation(omega=a.omega, hip_height=2 * CM + 1e-8 * j, theta_start=-135 * DEG,
@@ -195,6 +200,7 @@ def main() -> None:
                 th = ds.theta.values
                 row = {"medium": a.medium, "dx_mm": a.dx_mm, "leg": leg, "pad_cm": pad, "j": j,
                        "friction_deg": round(float(np.degrees(mat.friction)), 3),
+                       "friction_set_deg": a.friction_deg,
                        "omega_rad_s": a.omega, "particles": int(run["particles"]), "steps": int(run["steps"]),
                        "bed_width_m": run["bed_width_m"], "bed_depth_m": run["bed_depth_m"],
                        "wall_s": round(float(run["wall_seconds"]) if stored else wall, 1),

@@ -26,7 +26,7 @@ def calibrate_cmd(
     tol: float = typer.Option(0.03, help="Relative tolerance on the plate slope."),
     realizations: int = typer.Option(2, help="Plate runs averaged per friction angle (single runs scatter by about 10 %)."),
     max_evals: int = typer.Option(6, help="Most friction angles tried per medium."),
-    plate_bed_pad_cm: Optional[float] = typer.Option(None, "--plate-bed-pad-cm", show_default="the calibration bed: 6 plate lengths wide, 2 below", help="Granular bed beyond the plate's edges and below its deepest point, cm, in [1, 50] (docs/sph.md 'Bed size')."),
+    plate_bed_pad_cm: Optional[float] = typer.Option(None, "--plate-bed-pad-cm", show_default="the calibration bed, 9.5 cm beside and 7.6 cm below", help="Granular bed beyond the plate's edges and below its deepest point, cm, in [1, 50] (docs/sph.md 'Bed size')."),
     out: Optional[Path] = typer.Option(None, "--out", "-o", help="Write the calibration JSON here (default: stdout)."),
 ):
     """Calibrate the SPH friction angle of a medium on its plate test (Li 2013 Table S3).
