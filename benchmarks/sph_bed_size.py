@@ -123,6 +123,7 @@ def plate_study(a) -> None:
 
     from terradyn.sph.calibration import plate_slope
     from terradyn.sph.materials import from_medium
+    from terradyn.sph.state import SPHConfig
     from terradyn.units import CM, N_PER_CM3
 
     mat = from_medium(a.medium, dx=a.dx_mm * 1e-3)
@@ -131,7 +132,8 @@ def plate_study(a) -> None:
             key = f"{a.medium}|{a.dx_mm:g}mm|" + ("calibration bed" if pad is None else f"pad {pad:g}cm") + f"|j{j}"
             if OUT.exists() and key in json.loads(OUT.read_text()).get("plate_runs", {}):
                 continue
-            r = plate_slope(mat, dx=a.dx_mm * 1e-3, first=j, bed_pad=None if pad is None else pad * CM)
+            cfg = SPHConfig(dx=a.dx_mm * 1e-3, bed_pad=None if pad is None else pad * CM)
+            r = plate_slope(mat, config=cfg, first=j)
             run = json.loads(r["series"].attrs["input"])["run"]
             row = {"medium": a.medium, "dx_mm": a.dx_mm, "pad_cm": pad, "j": j,
                    "friction_deg": round(float(np.degrees(mat.friction)), 3),
@@ -171,11 +173,11 @@ def main() -> None:
         print(json.dumps({k: d[k] for k in ("summary", "summary_plate") if k in d}, indent=1))
         return
 
-    import numpy as np
-
     if a.plate_pads is not None:
         plate_study(a)
         return
+    import numpy as np
+
     import terradyn as td
     from terradyn.sph.materials import from_medium
     from terradyn.sph.state import SPHConfig

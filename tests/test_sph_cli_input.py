@@ -314,10 +314,12 @@ def test_bed_pad_sets_the_leg_bed_and_names_the_sweep_case(monkeypatch):
     assert "bed_pad" not in SPHConfig().run_items()  # checkpoints written before it still resume
 
 
-def test_plate_bed_pad_sets_the_plate_bed_and_is_checked(monkeypatch):
-    """The plate test's ``bed_pad``: the bed reaches that far beyond the plate's edges and
-    below its deepest point; None keeps the calibration's bed; out of range refused."""
-    from terradyn.errors import InputError
+def test_plate_bed_pad_sets_the_plate_bed_and_is_checked(monkeypatch, capsys):
+    """The plate test's ``config.bed_pad``: the bed reaches that far beyond the plate's edges
+    and below its deepest point; None keeps the calibration's bed; ``sph plate --bed-pad-cm``
+    sets it, and refuses one out of range before any work."""
+    from terradyn.cli import main
+    from terradyn.sph.state import SPHConfig
     from terradyn.units import CM
 
     seen = []
@@ -329,10 +331,12 @@ def test_plate_bed_pad_sets_the_plate_bed_and_is_checked(monkeypatch):
     monkeypatch.setattr(api, "leg_scene", spy)
     for pad in (None, 0.12):
         with pytest.raises(Started):
-            validation.plate_push(dx=4e-3, depth=0.04, bed_pad=pad)
-    (w0, d0), (w12, d12) = seen
+            validation.plate_push(depth=0.04, config=SPHConfig(dx=4e-3, bed_pad=pad))
+    main(["sph", "plate", "--quick", "--depth-cm", "4", "--bed-pad-cm", "12"])  # stopped by the spy
+    assert "bed sized" in capsys.readouterr().err
+    (w0, d0), (w12, d12), (wc, dc) = seen
     L = 3.81 * CM
     assert (w0, d0) == pytest.approx((max(6 * L, 0.15), 0.04 + max(2 * L, 0.04)))
-    assert (w12, d12) == pytest.approx((L + 0.24, 0.04 + 0.12))
-    with pytest.raises(InputError, match="bed-pad"):
-        validation.plate_push(bed_pad=0.005)
+    assert (w12, d12) == pytest.approx((L + 0.24, 0.04 + 0.12)) == (wc, dc)
+    assert main(["sph", "plate", "--quick", "--bed-pad-cm", "0.5"]) == 2
+    _one_line_error(capsys, "bed-pad-cm", "cm")

@@ -44,6 +44,7 @@ def calibrate_cmd(
     from ..media import MEDIA
     from ..sph.calibration import PLATE_TEST, calibrate_friction
     from ..sph.materials import from_medium, from_properties
+    from ..sph.state import SPHConfig, bed_pad_m
     from ..units import DEG, N_PER_CM3
     from . import err
 
@@ -53,7 +54,8 @@ def calibrate_cmd(
     integer("realizations", realizations, 1)
     youngs = in_range("youngs-mpa", youngs_mpa, 0.05, 100.0, "MPa") * 1e6
     integer("max-evals", max_evals, 2)
-    bed_pad = None if plate_bed_pad_cm is None else in_range("plate-bed-pad-cm", plate_bed_pad_cm, 1.0, 50.0, "cm") * 1e-2
+    bed_pad = None if plate_bed_pad_cm is None else bed_pad_m("plate-bed-pad-cm", plate_bed_pad_cm)
+    config = None if bed_pad is None else SPHConfig(dx=dx, bed_pad=bed_pad)
     if out is not None:
         from ..io import check_output
 
@@ -90,7 +92,7 @@ def calibrate_cmd(
     for mat, target in jobs:
         err(f"calibrating {mat.name}: measured alpha_z = {target / N_PER_CM3:g} N/cm^3")
         cal = calibrate_friction(mat, target, dx=dx, tol=tol, realizations=realizations,
-                                 max_evals=max_evals, bed_pad=bed_pad,
+                                 max_evals=max_evals, config=config,
                                  report=lambda p, a: err(f"  phi = {p:.2f} deg -> alpha_z = {a:.4f} N/cm^3"))
         result[mat.name] = cal.describe() | {"density_kg_m3": mat.density, "youngs_Pa": mat.youngs,
                                              "dp_match": mat.dp_match}
@@ -127,13 +129,14 @@ def validate_cmd(
     """
     from ..errors import InputError, choice, in_range
     from ..sph import suite
+    from ..sph.state import bed_pad_m
     from . import err
 
     for s in scene:  # before the output folder is made
         choice("scene", s, list(suite.SCENES))
     dx = None if dx_mm is None else in_range("dx-mm", dx_mm, 1.0, 10.0, "mm") * 1e-3
     in_range("omega", omega, 0.01, 10.0, "rad/s")
-    pad = None if bed_pad_cm is None else in_range("bed-pad-cm", bed_pad_cm, 1.0, 50.0, "cm") * 1e-2
+    pad = None if bed_pad_cm is None else bed_pad_m("bed-pad-cm", bed_pad_cm)
     if realizations is not None:
         suite.check_realizations(realizations)  # before the output folder is made
     from ..sph.materials import RHEOLOGIES

@@ -46,13 +46,12 @@ def bearing_nq(phi: float) -> float:
     return math.exp(math.pi * t) * math.tan(math.pi / 4 + phi / 2) ** 2
 
 
-def plate_slope(mat, *, dx: float = 4e-3, config=None, realizations: int = 1, first: int = 0,
-                bed_pad: float | None = None) -> dict:
+def plate_slope(mat, *, dx: float = 4e-3, config=None, realizations: int = 1, first: int = 0) -> dict:
     """The SPH plate test (:func:`terradyn.sph.validation.plate_push`, :data:`PLATE_TEST`)
     for a :class:`~terradyn.sph.materials.GranularMaterial`, averaged over ``realizations``
     runs (physically identical starts, see plate_push's ``realization``), numbered from
     ``first`` (so that runs ``first``, ``first + 1``, ... add to an earlier call's);
-    ``bed_pad`` (m) as in plate_push (None: the calibration's bed).
+    ``config.bed_pad`` sets the bed as in plate_push (None: the calibration's bed).
 
     Returns ``alpha_z`` (N/m^3): the RFT-consistent coefficient, the least-squares fit of
     sigma = alpha |z| through the origin over depths 1-4 cm (RFT applies alpha that way; the
@@ -73,7 +72,7 @@ def plate_slope(mat, *, dx: float = 4e-3, config=None, realizations: int = 1, fi
     for k in range(int(first), int(first) + int(realizations)):
         r = plate_push(mat, speed=PLATE_TEST["speed_m_s"], depth=PLATE_TEST["depth_m"],
                        n_samples=PLATE_TEST["n_samples"], fit_from=PLATE_TEST["fit_from_m"],
-                       config=cfg, realization=k, bed_pad=bed_pad)
+                       config=cfg, realization=k)
         d, st = r["depth"], r["stress"]
         m = d > PLATE_TEST["fit_from_m"]
         slope, icpt = np.polyfit(d[m], st[m], 1)
@@ -116,8 +115,7 @@ class Calibration:
 
 def calibrate_friction(mat, alpha_z_measured: float, *, dx: float = 4e-3, tol: float = 0.03,
                        max_evals: int = 6, realizations: int = 1, config=None,
-                       report: Callable[[float, float], None] | None = None,
-                       bed_pad: float | None = None) -> Calibration:
+                       report: Callable[[float, float], None] | None = None) -> Calibration:
     """The friction angle at which the SPH plate test of ``mat`` (a GranularMaterial: its
     density, stiffness and the rest are kept) gives ``alpha_z_measured`` (N/m^3).
 
@@ -128,8 +126,8 @@ def calibrate_friction(mat, alpha_z_measured: float, *, dx: float = 4e-3, tol: f
     0.25 deg (or ``max_evals`` plate tests). Converged: the fitted slope at the estimate is the
     target and the nearest evaluation is within ``tol`` + the scatter. ``report(phi_deg,
     alpha_z_N_per_cm3)`` after each test (about 20 s each at dx = 4 mm on 2 cores).
-    ``bed_pad`` (m): the plate test's bed beyond the plate (:func:`plate_slope`; None: the
-    calibration's bed)."""
+    ``config`` (an SPHConfig; None: ``SPHConfig(dx=dx)``) also sets the plate test's bed
+    (``bed_pad``, :func:`plate_slope`)."""
     import numpy as np
 
     target = positive("alpha_z_measured", alpha_z_measured, "N/m^3")
@@ -139,7 +137,7 @@ def calibrate_friction(mat, alpha_z_measured: float, *, dx: float = 4e-3, tol: f
 
     def f(phi_deg):
         a = plate_slope(mat.with_(friction=phi_deg * DEG), dx=dx, config=config,
-                        realizations=realizations, bed_pad=bed_pad)["alpha_z"]
+                        realizations=realizations)["alpha_z"]
         pts.append((phi_deg, math.log(a / target) if a > 0 else -10.0))
         if report:
             report(phi_deg, a / N_PER_CM3)

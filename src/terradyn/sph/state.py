@@ -20,6 +20,14 @@ SOIL, WALL, LEG, LOST = 0, 1, 2, 3
 
 #: SPHConfig.backend values.
 BACKENDS = ("cpu", "gpu", "auto")
+#: Allowed ``SPHConfig.bed_pad`` (m): the bed beyond the path of the leg or plate.
+BED_PAD_RANGE = (0.01, 0.5)
+
+
+def bed_pad_m(field: str, value_cm: float) -> float:
+    """A bed pad given in cm at the edge (``field`` names it in errors), checked, in m."""
+    lo, hi = BED_PAD_RANGE
+    return in_range(field, value_cm, lo * 100, hi * 100, "cm") / 100
 #: SPHConfig.boundary values: "resolved" (the leg's own thickness, material on its two sides
 #: kept apart, a contact guard at ``contact_gap`` dx, default 1/4) or "guard" (the model
 #: before issue 17: no side test, grains held max(dx/4, h - t/2) off the surface).
@@ -102,7 +110,7 @@ class SPHConfig:
         if self.wall_friction is not None:
             in_range("wall-friction", self.wall_friction, 0.0, math.radians(60.0), "rad")
         if self.bed_pad is not None:
-            in_range("bed-pad", self.bed_pad, 0.01, 0.5, "m")
+            in_range("bed-pad", self.bed_pad, *BED_PAD_RANGE, "m")
         if self.backend not in BACKENDS:
             raise InputError("backend", f"must be one of {', '.join(map(repr, BACKENDS))}, "
                                         f"got {self.backend!r}")

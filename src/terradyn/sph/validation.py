@@ -12,7 +12,7 @@ import math
 
 import numpy as np
 
-from ..errors import in_range, positive
+from ..errors import positive
 from ..geometry import ArcLeg
 from ..media import MEDIA, stress_model
 from ..motion import PlanarMotion, Rotation
@@ -175,15 +175,15 @@ def slope_stability(angle: float, medium="3 mm glass CP", *, height=0.06, dx=4e-
 # ----------------------------------------------------------------------------- 3. plate push
 def plate_push(medium="3 mm glass CP", *, length=3.81 * CM, width=2.54 * CM, thickness=0.64 * CM,
                speed=0.01, depth=0.05, dx=2.5e-3, n_samples=51, config: SPHConfig | None = None,
-               fit_from=0.01, realization: int = 0, bed_pad: float | None = None) -> dict:
+               fit_from=0.01, realization: int = 0) -> dict:
     """Push a horizontal plate straight down at ``speed`` (m/s) from the surface to ``depth``;
     vertical stress on the plate per depth = alpha_z(0, pi/2) (N/m^3), fitted on depths >
     ``fit_from``, against the measured value of Li 2013 (Table S1 footnote, via MEDIA).
     ``realization`` k > 0 starts the plate k x 10 nm higher: a physically nil change that
     gives another realization of the run (the granular flow under the plate is chaotic at
     a few particles across it: slopes of single runs scatter by about 10 %, docs/sph.md).
-    ``bed_pad`` (m): the bed beyond the plate's edges and below its deepest point; None keeps
-    the calibration's bed (a bed 6 plate lengths wide, at least 15 cm, and 2 plate lengths,
+    ``config.bed_pad`` (m): the bed beyond the plate's edges and below its deepest point; None
+    keeps the calibration's bed (6 plate lengths wide, at least 15 cm, and 2 plate lengths,
     at least 4 cm, below the plate's deepest point: docs/sph.md, "Bed size")."""
     from .api import simulate
 
@@ -198,11 +198,10 @@ def plate_push(medium="3 mm glass CP", *, length=3.81 * CM, width=2.54 * CM, thi
     mot = PlanarMotion(t, np.full_like(t, -length / 2), z0 - speed * t, np.zeros_like(t),
                        hip_vx=np.zeros_like(t), hip_vz=np.full_like(t, -speed),
                        angular_velocity=np.zeros_like(t))
-    if bed_pad is None:
+    if cfg.bed_pad is None:
         bw, bd = max(6 * length, 0.15), depth + max(2 * length, 0.04)
     else:
-        in_range("bed-pad", bed_pad, 0.01, 0.5, "m")
-        bw, bd = length + 2 * bed_pad, depth + bed_pad
+        bw, bd = length + 2 * cfg.bed_pad, depth + cfg.bed_pad
     ds = simulate(plate, mot, mat, config=cfg, thickness=thickness, bed_width=bw, bed_depth=bd)
     d = -(z0 - speed * t)  # plate centre depth
     stress = ds.Fz.values / (length * width)
