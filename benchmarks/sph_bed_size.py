@@ -6,6 +6,8 @@ below the surface (``SPHConfig.bed_pad``; 6 cm is the default), each the mean cu
 
     python benchmarks/sph_bed_size.py --medium "poppy LP" [--dx-mm 2.5] [--pads 6 4 3]
         [--realizations 2] [--legs flat c reverse-c] [--store .sph-runs]
+    python benchmarks/sph_bed_size.py --medium "poppy LP" --plate-pads 16 24 [--plate-below-cm 7.62]
+        [--friction-deg X]
     python benchmarks/sph_bed_size.py --summarize
 
 Records per run: peaks of Fz (lift) and Fx (thrust), particles, steps and wall time; the
@@ -98,10 +100,11 @@ def summarize_plate(data: dict) -> dict:
 
     groups: dict[tuple, list] = {}
     for r in data.get("plate_runs", {}).values():
-        groups.setdefault((r["medium"], r["dx_mm"], r["pad_cm"] or 0.0), []).append(r)
+        groups.setdefault((r["medium"], r["dx_mm"], r["pad_cm"] or 0.0, r.get("below_cm") or 0.0,
+                           r.get("friction_set_deg") or 0.0), []).append(r)
     out = {}
-    for (medium, dx, pad), rs in sorted(groups.items()):
-        ref = groups.get((medium, dx, 0.0))
+    for (medium, dx, pad, below, phi), rs in sorted(groups.items()):
+        ref = groups.get((medium, dx, 0.0, 0.0, phi))
         a = [r["alpha_z_N_per_cm3"] for r in rs]
         row = {"runs": len(rs), "particles": rs[0]["particles"],
                "bed_width_m": rs[0]["bed_width_m"], "bed_depth_m": rs[0]["bed_depth_m"],
@@ -111,14 +114,16 @@ def summarize_plate(data: dict) -> dict:
         if ref:
             a0 = float(np.mean([r["alpha_z_N_per_cm3"] for r in ref]))
             row["change_from_calibration_bed_pct"] = round(100 * (float(np.mean(a)) / a0 - 1), 2)
-        out[f"{medium}|{dx:g}mm|" + ("calibration bed" if pad == 0.0 else f"pad {pad:g}cm")] = row
+        out[f"{medium}|{dx:g}mm|" + ("calibration bed" if pad == 0.0 else f"pad {pad:g}cm")
+            + (f"|below {below:g}cm" if below else "") + (f"|phi {phi:g}" if phi else "")] = row
     return out
 
 
 def plate_study(a) -> None:
     """The plate test (the calibration, ``terradyn.sph.calibration.plate_slope``) in the
     calibration's bed and in beds reaching --plate-pads cm beyond the plate's edges and below
-    its deepest point."""
+    its deepest point (with --plate-below-cm, that far below it instead, so that the reach
+    beside the plate and below it are seen apart); --friction-deg sets the angle."""
     import numpy as np
 
     from terradyn.sph.calibration import plate_slope
@@ -126,16 +131,22 @@ def plate_study(a) -> None:
     from terradyn.sph.state import SPHConfig
     from terradyn.units import CM, N_PER_CM3
 
-    mat = from_medium(a.medium, dx=a.dx_mm * 1e-3)
+    mat = from_medium(a.medium, dx=a.dx_mm * 1e-3, friction_deg=a.friction_deg)
+    below = a.plate_below_cm
     for pad in [None, *a.plate_pads]:
         for j in range(a.realizations):
-            key = f"{a.medium}|{a.dx_mm:g}mm|" + ("calibration bed" if pad is None else f"pad {pad:g}cm") + f"|j{j}"
+            tag = ("calibration bed" if pad is None else f"pad {pad:g}cm"
+                   + ("" if below is None else f"|below {below:g}cm"))
+            key = (f"{a.medium}|{a.dx_mm:g}mm|{tag}"
+                   + ("" if a.friction_deg is None else f"|phi {a.friction_deg:g}") + f"|j{j}")
             if OUT.exists() and key in json.loads(OUT.read_text()).get("plate_runs", {}):
                 continue
             cfg = SPHConfig(dx=a.dx_mm * 1e-3, bed_pad=None if pad is None else pad * CM)
-            r = plate_slope(mat, config=cfg, first=j)
+            r = plate_slope(mat, config=cfg, first=j,
+                            below=None if pad is None or below is None else below * CM)
             run = json.loads(r["series"].attrs["input"])["run"]
             row = {"medium": a.medium, "dx_mm": a.dx_mm, "pad_cm": pad, "j": j,
+                   "below_cm": None if pad is None else below, "friction_set_deg": a.friction_deg,
                    "friction_deg": round(float(np.degrees(mat.friction)), 3),
                    "alpha_z_N_per_cm3": round(r["alpha_z"] / N_PER_CM3, 5),
                    "slope_N_per_cm3": round(r["slope"] / N_PER_CM3, 5),
@@ -162,6 +173,8 @@ def main() -> None:
                          "(e.g. one calibrated in a larger plate bed, sph calibrate --plate-bed-pad-cm)")
     ap.add_argument("--plate-pads", type=float, nargs="*", default=None,
                     help="cm; run the plate test (calibration bed and these) instead of the legs")
+    ap.add_argument("--plate-below-cm", type=float, default=None,
+                    help="cm; the plate's padded beds reach this far below the plate (default: the pad)")
     ap.add_argument("--summarize", action="store_true")
     a = ap.parse_args()
     if a.summarize:

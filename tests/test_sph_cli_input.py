@@ -340,3 +340,12 @@ def test_plate_bed_pad_sets_the_plate_bed_and_is_checked(monkeypatch, capsys):
     assert (w12, d12) == pytest.approx((L + 0.24, 0.04 + 0.12)) == (wc, dc)
     assert main(["sph", "plate", "--quick", "--bed-pad-cm", "0.5"]) == 2
     _one_line_error(capsys, "bed-pad-cm", "cm")
+    # ``below`` sets the depth below the plate on its own (the width keeps the pad), checked
+    with pytest.raises(Started):
+        validation.plate_push(depth=0.04, config=SPHConfig(dx=4e-3, bed_pad=0.12), below=0.0762)
+    assert seen[-1] == pytest.approx((L + 0.24, 0.04 + 0.0762))
+    from terradyn.errors import InputError
+
+    with pytest.raises(InputError, match="below"):
+        validation.plate_push(depth=0.04, config=SPHConfig(dx=4e-3, bed_pad=0.12), below=0.001)
+    assert len(seen) == 4

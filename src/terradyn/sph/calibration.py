@@ -46,12 +46,14 @@ def bearing_nq(phi: float) -> float:
     return math.exp(math.pi * t) * math.tan(math.pi / 4 + phi / 2) ** 2
 
 
-def plate_slope(mat, *, dx: float = 4e-3, config=None, realizations: int = 1, first: int = 0) -> dict:
+def plate_slope(mat, *, dx: float = 4e-3, config=None, realizations: int = 1, first: int = 0,
+                below: float | None = None) -> dict:
     """The SPH plate test (:func:`terradyn.sph.validation.plate_push`, :data:`PLATE_TEST`)
     for a :class:`~terradyn.sph.materials.GranularMaterial`, averaged over ``realizations``
     runs (physically identical starts, see plate_push's ``realization``), numbered from
     ``first`` (so that runs ``first``, ``first + 1``, ... add to an earlier call's);
-    ``config.bed_pad`` sets the bed as in plate_push (None: the calibration's bed).
+    ``config.bed_pad`` sets the bed as in plate_push (None: the calibration's bed), and
+    ``below`` (m) the bed below the plate on its own, as there.
 
     Returns ``alpha_z`` (N/m^3): the RFT-consistent coefficient, the least-squares fit of
     sigma = alpha |z| through the origin over depths 1-4 cm (RFT applies alpha that way; the
@@ -72,7 +74,7 @@ def plate_slope(mat, *, dx: float = 4e-3, config=None, realizations: int = 1, fi
     for k in range(int(first), int(first) + int(realizations)):
         r = plate_push(mat, speed=PLATE_TEST["speed_m_s"], depth=PLATE_TEST["depth_m"],
                        n_samples=PLATE_TEST["n_samples"], fit_from=PLATE_TEST["fit_from_m"],
-                       config=cfg, realization=k)
+                       config=cfg, realization=k, below=below)
         d, st = r["depth"], r["stress"]
         m = d > PLATE_TEST["fit_from_m"]
         slope, icpt = np.polyfit(d[m], st[m], 1)

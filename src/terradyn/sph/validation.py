@@ -12,7 +12,7 @@ import math
 
 import numpy as np
 
-from ..errors import positive
+from ..errors import in_range, positive
 from ..geometry import ArcLeg
 from ..media import MEDIA, stress_model
 from ..motion import PlanarMotion, Rotation
@@ -20,7 +20,7 @@ from ..units import CM, DEG, G, N_PER_CM3
 from .materials import GranularMaterial, material as _material
 from .scenes import bed_scene, column_scene, slope_scene
 from .solver import run
-from .state import SPHConfig
+from .state import BED_PAD_RANGE, SPHConfig
 
 LUBE2005 = ("G. Lube, H. E. Huppert, R. S. J. Sparks, A. Freundt, Collapses of two-dimensional "
             "granular columns, Phys. Rev. E 72:041301 (2005)")
@@ -175,7 +175,7 @@ def slope_stability(angle: float, medium="3 mm glass CP", *, height=0.06, dx=4e-
 # ----------------------------------------------------------------------------- 3. plate push
 def plate_push(medium="3 mm glass CP", *, length=3.81 * CM, width=2.54 * CM, thickness=0.64 * CM,
                speed=0.01, depth=0.05, dx=2.5e-3, n_samples=51, config: SPHConfig | None = None,
-               fit_from=0.01, realization: int = 0) -> dict:
+               fit_from=0.01, realization: int = 0, below: float | None = None) -> dict:
     """Push a horizontal plate straight down at ``speed`` (m/s) from the surface to ``depth``;
     vertical stress on the plate per depth = alpha_z(0, pi/2) (N/m^3), fitted on depths >
     ``fit_from``, against the measured value of Li 2013 (Table S1 footnote, via MEDIA).
@@ -184,7 +184,10 @@ def plate_push(medium="3 mm glass CP", *, length=3.81 * CM, width=2.54 * CM, thi
     a few particles across it: slopes of single runs scatter by about 10 %, docs/sph.md).
     ``config.bed_pad`` (m): the bed beyond the plate's edges and below its deepest point; None
     keeps the calibration's bed (6 plate lengths wide, at least 15 cm, and 2 plate lengths,
-    at least 4 cm, below the plate's deepest point: docs/sph.md, "Bed size")."""
+    at least 4 cm, below the plate's deepest point: docs/sph.md, "Bed size"). ``below`` (m;
+    None: as ``config.bed_pad``, or the calibration's bed) sets the bed below the plate's
+    deepest point on its own, so that the reach beside the plate and below it can be studied
+    apart ("Bed size": the lateral reach is what matters most)."""
     from .api import simulate
 
     positive("speed", speed, "m/s")
@@ -202,6 +205,8 @@ def plate_push(medium="3 mm glass CP", *, length=3.81 * CM, width=2.54 * CM, thi
         bw, bd = max(6 * length, 0.15), depth + max(2 * length, 0.04)
     else:
         bw, bd = length + 2 * cfg.bed_pad, depth + cfg.bed_pad
+    if below is not None:
+        bd = depth + in_range("below", below, *BED_PAD_RANGE, "m")
     ds = simulate(plate, mot, mat, config=cfg, thickness=thickness, bed_width=bw, bed_depth=bd)
     d = -(z0 - speed * t)  # plate centre depth
     stress = ds.Fz.values / (length * width)
