@@ -95,42 +95,33 @@ def summarize(data: dict) -> dict:
 
 def vs_measured(data: dict) -> dict:
     """Per medium, pad and friction angle: each leg's mean curve against Li 2013 Fig. S5's
-    measured curve, as ``terradyn sph validate`` judges it (``suite.leg_vs_measured``: peak
-    difference, RMS over the measured angles, RFT's RMS on the measured grid, linear), and
-    the count of peaks within 15 % and of RMS no larger than RFT's."""
+    measured curve, scored as ``terradyn sph validate`` scores it
+    (``terradyn.sph.suite.leg_scores``: peak difference, RMS over the measured angles, RFT's
+    RMS on the measured grid, linear), and the count of peaks within 15 % and of RMS no
+    larger than RFT's."""
     import numpy as np
 
-    import terradyn as td
-    from terradyn.media import stress_model
-    from terradyn.rft import simulate as rft_simulate
-    from terradyn.geometry import make_leg
-    from terradyn.sph.suite import measured_legs
-    from terradyn.units import CM, DEG
+    from terradyn.sph.suite import leg_scores
 
-    exp = measured_legs()
     groups: dict[tuple, list] = {}
     for r in data["runs"].values():
         groups.setdefault((r["medium"], r["dx_mm"], r["pad_cm"], r.get("friction_set_deg") or 0.0,
                            r["leg"]), []).append(r)
-    mot = td.Rotation(omega=1.1, hip_height=2 * CM, theta_start=-135 * DEG, theta_end=135 * DEG,
-                      n_theta=271)
     out: dict = {}
     for (medium, dx, pad, phi, leg), rs in sorted(groups.items()):
-        rft = rft_simulate(make_leg(leg), mot, stress_model(medium, "table", interp="linear"))
+        curves = {c: np.mean([r["curve_" + c] for r in rs], axis=0) for c in ("Fz", "Fx")}
+        sc = leg_scores(medium, rs[0]["theta_deg"], curves["Fz"], curves["Fx"],
+                        omega=rs[0]["omega_rad_s"], leg=leg)
         key = f"{medium}|{dx:g}mm|pad {pad:g}cm" + (f"|phi {phi:g}" if phi else "")
         grp = out.setdefault(key, {"legs": {}, "peaks_within_15pct": 0, "rms_not_above_rft": 0,
                                    "checks": 0})
         row = {"realizations": len(rs)}
         for comp, name in (("Fz", "lift"), ("Fx", "thrust")):
-            e = exp[(exp.medium == medium) & (exp.leg == leg) & (exp.force == comp)]
-            th, y = e.theta_deg.values, e.force_N.values
-            cur = np.mean([r["curve_" + comp] for r in rs], axis=0)
-            s_ = np.interp(th, rs[0]["theta_deg"], cur)
-            f_ = np.interp(th, rft.theta.values, rft[comp].values)
-            diff = 100 * (float(cur.max()) / float(y.max()) - 1)
-            rms_s, rms_r = float(np.sqrt(np.mean((s_ - y) ** 2))), float(np.sqrt(np.mean((f_ - y) ** 2)))
-            row[name] = {"peak_N": round(float(cur.max()), 4), "measured_N": round(float(y.max()), 4),
-                         "diff_pct": round(diff, 1), "rms_N": round(rms_s, 4), "rms_rft_N": round(rms_r, 4)}
+            peak, meas = float(curves[comp].max()), sc[f"measured_peak_{name}_N"]
+            diff = 100 * (peak / meas - 1)
+            rms_s, rms_r = sc[f"rms_{name}_N"], sc[f"rms_{name}_rft_N"]
+            row[name] = {"peak_N": round(peak, 4), "measured_N": round(meas, 4),
+                         "diff_pct": round(diff, 1), "rms_N": rms_s, "rms_rft_N": rms_r}
             grp["peaks_within_15pct"] += abs(diff) <= 15
             grp["rms_not_above_rft"] += rms_s <= rms_r
             grp["checks"] += 1
