@@ -349,3 +349,9 @@ def test_plate_bed_pad_sets_the_plate_bed_and_is_checked(monkeypatch, capsys):
     with pytest.raises(InputError, match="below"):
         validation.plate_push(depth=0.04, config=SPHConfig(dx=4e-3, bed_pad=0.12), below=0.001)
     assert len(seen) == 4
+    main(["sph", "plate", "--quick", "--depth-cm", "4", "--bed-pad-cm", "16", "--bed-below-cm", "7.62"])
+    assert "bed sized" in capsys.readouterr().err
+    assert seen[-1] == pytest.approx((L + 0.32, 0.04 + 0.0762))
+    assert main(["sph", "plate", "--quick", "--bed-below-cm", "60"]) == 2
+    _one_line_error(capsys, "bed-below-cm", "cm")
+    assert len(seen) == 5

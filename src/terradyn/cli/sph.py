@@ -281,6 +281,7 @@ def plate_cmd(medium: str = _MEDIUM, density_kg_m3: Optional[float] = _DENSITY,
               speed_cm_s: float = typer.Option(1.0, help="Plate speed, cm/s."),
               depth_cm: float = typer.Option(5.0, help="Final depth, cm."),
               bed_pad_cm: Optional[float] = typer.Option(None, "--bed-pad-cm", show_default="the calibration bed, 9.5 cm beside and 7.6 cm below", help="Granular bed beyond the plate's edges and below its deepest point, cm, in [1, 50]; the calibration's bed holds the plate up by 9-13 % (docs/sph.md 'Bed size')."),
+              bed_below_cm: Optional[float] = typer.Option(None, "--bed-below-cm", show_default="as --bed-pad-cm", help="Granular bed below the plate's deepest point on its own, cm, in [1, 50] (the width keeps --bed-pad-cm; docs/sph.md 'Bed size')."),
               plot: Optional[Path] = typer.Option(None, help="Figure: stress on the plate vs depth.")):
     """Scene 3: a horizontal plate pushed down; alpha_z(0, pi/2) against Li et al. (2013)."""
     from .. import io
@@ -291,11 +292,12 @@ def plate_cmd(medium: str = _MEDIUM, density_kg_m3: Optional[float] = _DENSITY,
     positive("speed-cm-s", speed_cm_s, "cm/s")
     positive("depth-cm", depth_cm, "cm")
     pad = None if bed_pad_cm is None else bed_pad_m("bed-pad-cm", bed_pad_cm)
+    below = None if bed_below_cm is None else bed_pad_m("bed-below-cm", bed_below_cm)
     io.check_plot(plot)
     cfg = default_config(quick, dx=_dx(dx_mm), boundary=boundary, bed_pad=pad)
     r = validation.plate_push(_material(medium, density_kg_m3, friction_deg, dilatancy, dp_match,
                                         rheology, dx=cfg.dx),
-                              speed=speed_cm_s * 1e-2, depth=depth_cm * 1e-2, config=cfg)
+                              speed=speed_cm_s * 1e-2, depth=depth_cm * 1e-2, config=cfg, below=below)
     typer.echo(json.dumps({"alpha_z_N_per_cm3": r["alpha_z"] / 1e6,
                            "alpha_z_through_origin_N_per_cm3": r["alpha_z_origin"] / 1e6,
                            "alpha_z_measured_N_per_cm3": (r["alpha_z_measured"] or float("nan")) / 1e6,
