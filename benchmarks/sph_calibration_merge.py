@@ -1,12 +1,15 @@
-"""Add plate-test calibrations made at other particle spacings to the shipped calibration
-(issue 17: a medium runs with its calibration at the run's own spacing where one is shipped).
+"""Add plate-test calibrations made at other particle spacings, or in a larger plate bed, to
+the shipped calibration (issue 17: a medium runs with its calibration at the run's own spacing
+where one is shipped; ``--calibration-bed large`` takes the one made in a settled plate bed).
 
     terradyn sph calibrate --medium "0.3 mm glass CP" --dx-mm 1.6 -o glass16.json
-    python benchmarks/sph_calibration_merge.py glass16.json [more.json ...]
+    terradyn sph calibrate --medium "poppy LP" --plate-bed-pad-cm 24 -o poppy_pad24.json
+    python benchmarks/sph_calibration_merge.py glass16.json poppy_pad24.json [more.json ...]
 
 Each medium of each file goes under its ``other_resolutions`` in
-``src/terradyn/data/sph_calibration.json`` (``terradyn.sph.calibration.merge_resolutions``);
-the file is rewritten atomically."""
+``src/terradyn/data/sph_calibration.json``, or under its ``large_bed`` when the file's plate
+test had a larger bed (``terradyn.sph.calibration.merge_resolutions``); the file is rewritten
+atomically."""
 from __future__ import annotations
 
 import json
@@ -27,10 +30,19 @@ def main(paths: list[str]) -> None:
         "calibrations at other particle spacings, under each medium's other_resolutions (key: dx "
         "in mm): terradyn sph calibrate --medium M --dx-mm D, merged by "
         "benchmarks/sph_calibration_merge.py; a run at that spacing takes them (terradyn.sph.calibration.shipped_at)")
+    data["_meta"]["large_bed"] = (
+        "calibrations made with the plate in a bed where its slope has settled (about 0.7 of the "
+        "plane-strain Prandtl reach beside it, docs/sph.md 'Bed size'), under each medium's "
+        "large_bed: terradyn sph calibrate --medium M --plate-bed-pad-cm P, merged by "
+        "benchmarks/sph_calibration_merge.py; taken with --calibration-bed large")
     atomic_write_text(SHIPPED, json.dumps(data, indent=1) + "\n")
     for m, r in data.items():
         if m != "_meta":
             extra = ", ".join(f"{k} mm: {v['friction_deg']:g} deg" for k, v in r.get("other_resolutions", {}).items())
+            big = r.get("large_bed")
+            if big:
+                extra += (("; " if extra else "") + f"large bed ({big['plate_test']['bed_pad_m'] * 100:g} cm, "
+                          f"{big['bed_over_prandtl_reach']:g} of the reach): {big['friction_deg']:g} deg")
             print(f"{m}: {r['dx_m'] * 1e3:g} mm: {r['friction_deg']:g} deg" + (f"; {extra}" if extra else ""))
 
 

@@ -35,12 +35,13 @@ _RHEOLOGY = typer.Option("constant", "--rheology", help="Friction law: constant 
 _CHANNEL = typer.Option(None, "--channel-width-cm", help="Side walls of a quasi-2D channel this far apart, cm, with Coulomb friction pressed by the out-of-plane stress (default: none, plane strain; Lube et al. 2005's channel: 10).")
 _WALL_FRICTION = typer.Option(None, "--wall-friction-deg", help="Grain-wall friction angle of the side walls, deg, in [0, 60] (default: the medium's friction angle; needs --channel-width-cm).")
 _BED_PAD = typer.Option(None, "--bed-pad-cm", show_default="6; --quick 3", help="Granular bed beyond the leg's path below the surface, cm, in [1, 50]. The forces depend on it: from 6 to 3 cm the thrust peaks rise 7-51 %, from 6 to 9 cm they change by -16 to +4 % (docs/sph.md 'Bed size').")
+_CAL_BED = typer.Option("standard", "--calibration-bed", help="Plate bed of a Li 2013 medium's shipped friction calibration: standard (9.5 cm beside the plate, which holds it up by 1-13 %: the validated default) or large (a bed where the plate's slope has settled: 0.3-2 deg steeper; docs/sph.md 'Bed size').")
 _BOUNDARY = typer.Option("resolved", "--boundary", help="Leg boundary: resolved (sides kept apart, contact at dx/4) or guard (the model before issue 17).")
 
 
 def _material(medium: str, density_kg_m3: float | None, friction_deg: float | None,
               dilatancy: str = "none", dp_match: str = "plane-strain", rheology: str = "constant",
-              dx: float | None = None):
+              dx: float | None = None, calibration_bed: str = "standard"):
     """The SPH material of the options (:func:`terradyn.models.sph.material`); ``dx`` (m):
     the particle spacing it runs at (a medium's calibration there where one is shipped)."""
     from .. import models
@@ -48,7 +49,8 @@ def _material(medium: str, density_kg_m3: float | None, friction_deg: float | No
 
     return material(medium, models.get("sph").check_options(
         {"density_kg_m3": density_kg_m3, "friction_deg": friction_deg, "dilatancy": dilatancy,
-         "dp_match": dp_match, "rheology": rheology, "dx_mm": None if dx is None else dx * 1e3}))
+         "dp_match": dp_match, "rheology": rheology, "dx_mm": None if dx is None else dx * 1e3,
+         "calibration_bed": calibration_bed}))
 
 
 @contextmanager
@@ -134,6 +136,7 @@ def run_cmd(
     dilatancy: str = _DILATANCY,
     dp_match: str = _DP_MATCH,
     rheology: str = _RHEOLOGY,
+    calibration_bed: str = _CAL_BED,
     boundary: str = _BOUNDARY,
     quick: bool = _QUICK,
     dx_mm: Optional[float] = _DX,
@@ -180,7 +183,7 @@ def run_cmd(
     opts = model.check_options(dict(
         quick=quick, dx_mm=dx_mm, cfl=cfl, lowpass_hz=lowpass_hz, backend=Backend(backend).value,
         boundary=boundary, friction_deg=friction_deg, density_kg_m3=density_kg_m3,
-        dilatancy=dilatancy, dp_match=dp_match, rheology=rheology,
+        dilatancy=dilatancy, dp_match=dp_match, rheology=rheology, calibration_bed=calibration_bed,
         thickness_cm=positive("thickness-cm", thickness_cm, "cm"),
         **{k: v for k, v in (("channel_width_cm", channel_width_cm),
                              ("wall_friction_deg", wall_friction_deg),
@@ -277,10 +280,11 @@ def column_cmd(aspect: list[float] = typer.Option([0.5, 1.0, 2.0], help="Aspect 
 def plate_cmd(medium: str = _MEDIUM, density_kg_m3: Optional[float] = _DENSITY,
               friction_deg: Optional[float] = _FRICTION, dilatancy: str = _DILATANCY,
               dp_match: str = _DP_MATCH, rheology: str = _RHEOLOGY, boundary: str = _BOUNDARY,
+              calibration_bed: str = _CAL_BED,
               quick: bool = _QUICK, dx_mm: Optional[float] = _DX,
               speed_cm_s: float = typer.Option(1.0, help="Plate speed, cm/s."),
               depth_cm: float = typer.Option(5.0, help="Final depth, cm."),
-              bed_pad_cm: Optional[float] = typer.Option(None, "--bed-pad-cm", show_default="the calibration bed, 9.5 cm beside and 7.6 cm below", help="Granular bed beyond the plate's edges and below its deepest point, cm, in [1, 50]; the calibration's bed holds the plate up by 9-13 % (docs/sph.md 'Bed size')."),
+              bed_pad_cm: Optional[float] = typer.Option(None, "--bed-pad-cm", show_default="the calibration bed, 9.5 cm beside and 7.6 cm below; with --calibration-bed large, that calibration's bed", help="Granular bed beyond the plate's edges and below its deepest point, cm, in [1, 50]; the calibration's bed holds the plate up by 9-13 % (docs/sph.md 'Bed size')."),
               bed_below_cm: Optional[float] = typer.Option(None, "--bed-below-cm", show_default="as --bed-pad-cm", help="Granular bed below the plate's deepest point on its own, cm, in [1, 50] (the width keeps --bed-pad-cm; docs/sph.md 'Bed size')."),
               plot: Optional[Path] = typer.Option(None, help="Figure: stress on the plate vs depth.")):
     """Scene 3: a horizontal plate pushed down; alpha_z(0, pi/2) against Li et al. (2013)."""
@@ -294,10 +298,15 @@ def plate_cmd(medium: str = _MEDIUM, density_kg_m3: Optional[float] = _DENSITY,
     pad = None if bed_pad_cm is None else bed_pad_m("bed-pad-cm", bed_pad_cm)
     below = None if bed_below_cm is None else bed_pad_m("bed-below-cm", bed_below_cm)
     io.check_plot(plot)
-    cfg = default_config(quick, dx=_dx(dx_mm), boundary=boundary, bed_pad=pad)
-    r = validation.plate_push(_material(medium, density_kg_m3, friction_deg, dilatancy, dp_match,
-                                        rheology, dx=cfg.dx),
-                              speed=speed_cm_s * 1e-2, depth=depth_cm * 1e-2, config=cfg, below=below)
+    dx = default_config(quick, dx=_dx(dx_mm)).dx
+    mat = _material(medium, density_kg_m3, friction_deg, dilatancy, dp_match, rheology, dx=dx,
+                    calibration_bed=calibration_bed)
+    if calibration_bed == "large" and pad is None:  # the bed that calibration was made in
+        from ..sph.calibration import shipped_at
+
+        pad = shipped_at(medium, bed="large")["plate_test"]["bed_pad_m"]
+    cfg = default_config(quick, dx=dx, boundary=boundary, bed_pad=pad)
+    r = validation.plate_push(mat, speed=speed_cm_s * 1e-2, depth=depth_cm * 1e-2, config=cfg, below=below)
     typer.echo(json.dumps({"alpha_z_N_per_cm3": r["alpha_z"] / 1e6,
                            "alpha_z_through_origin_N_per_cm3": r["alpha_z_origin"] / 1e6,
                            "alpha_z_measured_N_per_cm3": (r["alpha_z_measured"] or float("nan")) / 1e6,
@@ -310,7 +319,7 @@ def plate_cmd(medium: str = _MEDIUM, density_kg_m3: Optional[float] = _DENSITY,
 def legs_cmd(omega: list[float] = typer.Option([0.2], help="Angular speeds, rad/s (repeat; the thesis uses 0.2 ... 1.1)."),
              legs: list[str] = typer.Option(["flat", "c", "reverse-c"], "--leg", help="Legs (repeat)."),
              medium: str = _MEDIUM, quick: bool = _QUICK, dx_mm: Optional[float] = _DX,
-             rheology: str = _RHEOLOGY,
+             rheology: str = _RHEOLOGY, calibration_bed: str = _CAL_BED,
              n_theta: int = typer.Option(271, help="Output angles."),
              outdir: Path = typer.Option(Path("results/sph"), "--out", "-o", "--outdir", help="Directory for series, metrics and figures."),
              checkpoint_dir: Optional[Path] = typer.Option(None, help="Directory for checkpoints (resume)."),
@@ -323,7 +332,7 @@ def legs_cmd(omega: list[float] = typer.Option([0.2], help="Angular speeds, rad/
     from ..sph.solver import check_checkpoint
 
     cfg = _config(quick, dx_mm, 0.2, None, Backend(backend).value)
-    mat = _material(medium, None, None, rheology=rheology, dx=cfg.dx)
+    mat = _material(medium, None, None, rheology=rheology, dx=cfg.dx, calibration_bed=calibration_bed)
     io.check_writable(outdir, "out", directory=True)
     if checkpoint_dir is not None:
         io.check_writable(checkpoint_dir, "checkpoint-dir", directory=True)
@@ -354,7 +363,7 @@ def legs_cmd(omega: list[float] = typer.Option([0.2], help="Angular speeds, rad/
 
 @sph_app.command("leg3d")
 def leg3d_cmd(medium: str = _MEDIUM, density_kg_m3: Optional[float] = _DENSITY,
-              friction_deg: Optional[float] = _FRICTION,
+              friction_deg: Optional[float] = _FRICTION, calibration_bed: str = _CAL_BED,
               leg: str = typer.Option("flat", help="Leg shape: flat, c or reverse-c (the 7.62 cm chord legs of Li 2013)."),
               dx_mm: float = typer.Option(4.0, "--dx-mm", help="Particle spacing, mm (4: about an hour for poppy LP on one core; the cost grows as dx^-4)."),
               omega: float = typer.Option(1.1, help="Angular speed, rad/s (the 2D validation's 1.1)."),
@@ -381,7 +390,7 @@ def leg3d_cmd(medium: str = _MEDIUM, density_kg_m3: Optional[float] = _DENSITY,
     if so_far and checkpoint is None:
         raise InputError("so-far", "needs --checkpoint FILE, the checkpoint of the run to read")
     check_checkpoint(checkpoint)  # never take over a file that is not a checkpoint
-    mat = _material(medium, density_kg_m3, friction_deg)
+    mat = _material(medium, density_kg_m3, friction_deg, calibration_bed=calibration_bed)
     if so_far:
         r = plate3d.leg3d(mat, shape=leg, config=cfg, slab=slab, omega=omega, checkpoint=checkpoint,
                           so_far=True)

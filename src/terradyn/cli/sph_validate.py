@@ -117,6 +117,7 @@ def validate_cmd(
     realizations: Optional[int] = typer.Option(None, show_default="3; --quick 1", help="Runs per leg test (1..20), averaged: the measured curves are means over trials, and single runs scatter by 1-5 % with peaks biased high (docs/sph.md); each run's peak and the standard error go into validation.json."),
     rheology: str = typer.Option("constant", "--rheology", help="Friction law of the column, plate, rig and leg scenes: constant (rate-independent) or mu-i (Jop et al. 2006's mu(I) on each medium's calibrated angle; docs/sph.md)."),
     bed_pad_cm: Optional[float] = typer.Option(None, "--bed-pad-cm", show_default="6", help="Leg tests: granular bed beyond the leg's path below the surface, cm, in [1, 50] (docs/sph.md 'Bed size')."),
+    calibration_bed: str = typer.Option("standard", "--calibration-bed", help="Which shipped friction calibration the media take: standard (plate in the 9.5 cm calibration bed) or large (plate in a bed where its slope has settled; the plate scene then runs in that bed). docs/sph.md 'Bed size'."),
 ):
     """Run the SPH validation scenes and compare with measurements: validation.json (quantity,
     ours, reference, source, difference, verdict) and figures in OUT.
@@ -142,6 +143,17 @@ def validate_cmd(
     from ..sph.materials import RHEOLOGIES
 
     choice("rheology", rheology, list(RHEOLOGIES))
+    from ..sph.calibration import CALIBRATION_BEDS
+
+    choice("calibration-bed", calibration_bed, list(CALIBRATION_BEDS))
+    if calibration_bed != "standard":  # every medium must have it: checked before any work
+        from ..errors import renamed
+        from ..sph.materials import MATERIALS, from_medium
+
+        with renamed(calibration_bed="calibration-bed"):
+            for m in medium or list(MATERIALS):
+                if m in MATERIALS:  # an unknown name gets its own error in the run
+                    from_medium(m, calibration_bed=calibration_bed)
     if realizations is not None and realizations > 1 and scene and "legs" not in scene:
         from ..models import ignored
 
@@ -156,7 +168,7 @@ def validate_cmd(
     res = suite.validate(quick=quick, scenes=tuple(scene) or suite.SCENES, media=medium or None,
                          dx=dx, omega=omega, progress=lambda m: err(f"[dim]{m}[/]"),
                          figures_dir=out, realizations=realizations, rheology=rheology,
-                         store=out / "runs", bed_pad=pad)
+                         store=out / "runs", bed_pad=pad, calibration_bed=calibration_bed)
     res["summary"] = suite.summary(res)
     _atomic_json(out / "validation.json", res)
     for c in res["checks"]:

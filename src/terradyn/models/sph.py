@@ -48,6 +48,10 @@ OPTIONS = (
            help="Drucker-Prager cone matched to the friction angle (default plane-strain; bui2008: "
                 "the former cone, which mobilises less friction; a named medium then uses its "
                 "repose angle unless friction_deg is given)."),
+    Option("calibration_bed", str, None, choices=("standard", "large"),
+           help="Plate bed of a Li 2013 medium's shipped calibration (default standard: 9.5 cm "
+                "beside the plate; large: a bed where the plate's slope has settled, 0.3-2 deg "
+                "steeper friction; docs/sph.md 'Bed size')."),
 )
 _CFG = {"hdx": "hdx", "cfl": "cfl", "av_alpha": "av_alpha", "av_beta": "av_beta",
         "wall_layers": "wall_layers", "noslip": "noslip", "boundary": "boundary",
@@ -109,6 +113,9 @@ def material(medium, opts: dict, field=lambda k: k.replace("_", "-")):
         if opts.get("rheology", "constant") != "constant":
             raise InputError(field("rheology"), "'mu-i' needs a Li 2013 medium (its grain size and "
                                                 "density, Table S1), not your own density")
+        if opts.get("calibration_bed", "standard") != "standard":
+            raise InputError(field("calibration_bed"), "'large' picks a shipped calibration of a Li "
+                                                       "2013 medium; your own medium has its friction_deg")
         return from_properties(medium, opts["density_kg_m3"], opts["friction_deg"],
                                dp_match=opts.get("dp_match") or "plane-strain")
     if medium not in media.MEDIA:
@@ -118,12 +125,13 @@ def material(medium, opts: dict, field=lambda k: k.replace("_", "-")):
         return from_medium(medium, friction_deg=opts.get("friction_deg"),
                            dilatancy=opts.get("dilatancy") or "none",
                            dp_match=opts.get("dp_match") or "plane-strain",
-                           rheology=opts.get("rheology") or "constant", dx=_dx(opts))
+                           rheology=opts.get("rheology") or "constant", dx=_dx(opts),
+                           calibration_bed=opts.get("calibration_bed") or "standard")
     except InputError as e:
-        if e.field not in ("dilatancy", "dp_match"):
+        if e.field not in ("dilatancy", "dp_match", "calibration_bed"):
             raise
-        if e.field == "dp_match":
-            raise InputError(field("dp_match"), str(e).split(": ", 1)[-1]) from None
+        if e.field in ("dp_match", "calibration_bed"):
+            raise InputError(field(e.field), str(e).split(": ", 1)[-1]) from None
         raise InputError(field("dilatancy"), str(e).split(": ", 1)[-1]) from None
 
 
@@ -168,6 +176,8 @@ def _resolve(opts: dict) -> dict:
         out["dp_match"] = o["dp_match"]
     if o.get("rheology", "constant") != "constant":  # absent = rate-independent
         out["rheology"] = o["rheology"]
+    if o.get("calibration_bed", "standard") != "standard":  # absent = the standard bed
+        out["calibration_bed"] = o["calibration_bed"]
     if cfg.settle_time is not None:
         out["settle_time_s"] = _canon(cfg.settle_time)
     if cfg.lowpass_hz is not None:

@@ -215,15 +215,43 @@ def _mm(dx: float) -> str:
     return f"{round(dx * 1e3, 4):g}"
 
 
-def shipped_at(medium: str, dx: float | None = None) -> dict | None:
+#: The plate beds a shipped calibration can have been made in: "standard" (the calibration
+#: bed, 9.5 cm beside the plate and 7.6 cm below it: the validated default) and "large" (a bed
+#: past about 0.7 of the plate's plane-strain Prandtl reach, where its slope has settled;
+#: docs/sph.md, "Bed size"). Large-bed calibrations are under each medium's ``"large_bed"``.
+CALIBRATION_BEDS = ("standard", "large")
+
+
+def prandtl_reach(phi: float, width: float = 0.0381) -> float:
+    """How far (m) the plane-strain Prandtl failure mechanism under a strip footing of
+    ``width`` (m; Li 2013's plate: 3.81 cm) reaches beyond its edge at friction angle ``phi``
+    (rad): 2 r1 cos(45 deg - phi/2), r1 = (B/2) e^((pi/2) tan phi) / cos(45 deg + phi/2)
+    (the log-spiral's outer radius, Prandtl 1920). A plate test's bed must reach about 0.7 of
+    it beside the plate before the slope stops changing (docs/sph.md, "Bed size")."""
+    r1 = 0.5 * width * math.exp(0.5 * math.pi * math.tan(phi)) / math.cos(math.pi / 4 + phi / 2)
+    return 2.0 * r1 * math.cos(math.pi / 4 - phi / 2)
+
+
+def shipped_at(medium: str, dx: float | None = None, bed: str = "standard") -> dict | None:
     """The shipped calibration of ``medium`` for a run at particle spacing ``dx`` (m): the one
     made at ``dx`` where the package has it, else the production one (None if the medium has
     none). The plate test converges slowly with resolution (docs/sph.md, "Convergence"), so
     a medium run at another spacing than it was calibrated at reads a plate slope 5-15 % off
     the measured one; calibrating at the run's own spacing removes that part, and the
-    leg-to-plate ratios move less with resolution than either force does."""
+    leg-to-plate ratios move less with resolution than either force does.
+
+    ``bed`` (:data:`CALIBRATION_BEDS`): "large" gives the calibration made with the plate in
+    a bed where its slope has settled (at the production spacing only; None if the medium
+    has none)."""
+    from ..errors import choice
+
+    choice("calibration_bed", bed, list(CALIBRATION_BEDS))
     found = shipped().get(medium)
-    if found is None or dx is None:
+    if found is None:
+        return None
+    if bed == "large":
+        return found.get("large_bed")
+    if dx is None:
         return found
     return found.get("other_resolutions", {}).get(_mm(dx), found)
 
@@ -236,15 +264,25 @@ def calibrated_spacings(medium: str) -> list[float]:
     return sorted({round(found["dx_m"] * 1e3, 4), *(float(k) for k in found.get("other_resolutions", {}))})
 
 
+#: A large-bed calibration's plate bed must reach at least this fraction of the plate's
+#: Prandtl reach beside it (:func:`prandtl_reach`; the slope settles at about 0.7).
+LARGE_BED_MIN_REACH = 0.5
+
+
 def merge_resolutions(base: dict, new: dict) -> dict:
     """``base`` (a calibration file's content: ``terradyn sph calibrate`` output at the
     production spacing) with the media of ``new`` (the same command's output at another
     spacing) added under each medium's ``"other_resolutions"``, keyed by the spacing in mm;
-    a calibration at the base's own spacing replaces the medium's record. How the shipped
-    file gets its other resolutions:
-    ``python -c "import json, sys; from terradyn.sph.calibration import merge_resolutions as m; ..."``
-    (docs/sph.md). A medium of ``new`` that did not converge, or that base lacks, is refused."""
+    a calibration at the base's own spacing replaces the medium's record. A calibration made
+    in a larger plate bed (``sph calibrate --plate-bed-pad-cm``: ``_meta.plate_test.bed_pad_m``
+    set) goes under the medium's ``"large_bed"`` instead (the production spacing only, a bed
+    reaching at least :data:`LARGE_BED_MIN_REACH` of the plate's Prandtl reach at the angle
+    found; the record keeps its bed and that fraction). How the shipped file gets them:
+    ``python benchmarks/sph_calibration_merge.py FILE...`` (docs/sph.md). A medium of ``new``
+    that did not converge, or that base lacks, is refused."""
     out = json.loads(json.dumps(base))
+    meta = new.get("_meta", {})
+    pad = (meta.get("plate_test") or {}).get("bed_pad_m")
     for m, rec in new.items():
         if m == "_meta":
             continue
@@ -252,9 +290,23 @@ def merge_resolutions(base: dict, new: dict) -> dict:
             raise InputError("medium", f"{m!r} has no production calibration to add a resolution to")
         if not rec.get("converged", False):
             raise InputError("medium", f"the calibration of {m!r} did not converge ({rec.get('note', '')})")
-        rec = dict(rec, **{k: new["_meta"][k] for k in ("created", "realizations") if k in new.get("_meta", {})})
-        if abs(rec["dx_m"] - out[m]["dx_m"]) < 1e-9:
-            rec["other_resolutions"] = out[m].get("other_resolutions", {})
+        rec = dict(rec, **{k: meta[k] for k in ("created", "realizations") if k in meta})
+        if pad is not None:
+            if abs(rec["dx_m"] - out[m]["dx_m"]) > 1e-9:
+                raise InputError("dx_m", f"a large-bed calibration of {m!r} must be at the production "
+                                         f"spacing {_mm(out[m]['dx_m'])} mm, not {_mm(rec['dx_m'])} mm")
+            reach = prandtl_reach(rec["friction_deg"] * DEG)
+            if pad < LARGE_BED_MIN_REACH * reach:
+                raise InputError("bed_pad_m", f"{m!r}: a {pad * 100:g} cm plate bed is {pad / reach:.2f} of the "
+                                 f"plate's Prandtl reach ({reach * 100:.1f} cm at {rec['friction_deg']:g} deg); "
+                                 f"a large bed needs >= {LARGE_BED_MIN_REACH:g}")
+            rec["plate_test"] = dict(rec.get("plate_test", PLATE_TEST), bed_pad_m=pad)
+            rec["bed_over_prandtl_reach"] = round(pad / reach, 3)
+            out[m]["large_bed"] = rec
+        elif abs(rec["dx_m"] - out[m]["dx_m"]) < 1e-9:
+            for keep in ("other_resolutions", "large_bed"):
+                if keep in out[m]:
+                    rec[keep] = out[m][keep]
             out[m] = rec
         else:
             out[m].setdefault("other_resolutions", {})[_mm(rec["dx_m"])] = rec

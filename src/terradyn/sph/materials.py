@@ -220,7 +220,8 @@ BOLTON1986 = ("M. D. Bolton, The strength and dilatancy of sands, Geotechnique 3
 def from_medium(medium: str, youngs: float | None = None, poisson: float = 0.3,
                 friction_deg: float | None = None, friction: str | None = None,
                 dilatancy: str = "none", dp_match: str = "plane-strain",
-                rheology: str = "constant", dx: float | None = None) -> GranularMaterial:
+                rheology: str = "constant", dx: float | None = None,
+                calibration_bed: str = "standard") -> GranularMaterial:
     """The SPH material for a medium of :data:`terradyn.media.MEDIA` (Li 2013 Table S1).
 
     ``friction``: "repose" (the angle of repose, Table S1) or "calibrated" (the plane-strain
@@ -252,15 +253,32 @@ def from_medium(medium: str, youngs: float | None = None, poisson: float = 0.3,
     calibration of the medium made at that spacing, the calibrated friction angle is that
     one (the plate test is not converged in resolution, docs/sph.md "Convergence"); else,
     and when None, the production calibration (2.5 mm), and ``sources["friction"]`` says
-    that the run's spacing differs from the calibration's."""
-    from .calibration import calibrated_spacings, shipped_at
+    that the run's spacing differs from the calibration's.
+
+    ``calibration_bed``: "standard" (default: the calibration made in the plate test's
+    standard bed, 9.5 cm beside the plate, which holds the plate up by 1-13 %) or "large"
+    (the calibration made with the plate in a bed past about 0.7 of its Prandtl reach, where
+    its slope has settled: 0.3-2 deg steeper; production spacing only; docs/sph.md "Bed
+    size"). "large" takes the calibrated friction angle, so it cannot go with
+    ``friction_deg``, ``friction="repose"`` or ``dilatancy="bolton"``."""
+    from .calibration import CALIBRATION_BEDS, calibrated_spacings, shipped_at
 
     choice("dp_match", dp_match, list(DP_MATCHES))
     choice("medium", medium, list(MEDIA))
     choice("dilatancy", dilatancy, ["bolton", "none"])
     choice("rheology", rheology, list(RHEOLOGIES))
+    choice("calibration_bed", calibration_bed, list(CALIBRATION_BEDS))
     m = MEDIA[medium]
-    found = shipped_at(medium, dx)
+    large = calibration_bed == "large"
+    if large and (friction_deg is not None or friction == "repose" or dilatancy != "none"):
+        what = ("a friction angle of your own" if friction_deg is not None
+                else "the angle of repose" if friction == "repose" else "Bolton's dilatancy")
+        raise InputError("calibration_bed", f"'large' sets the friction angle from the large-bed plate "
+                         f"calibration; it cannot go with {what} (drop one)")
+    found = shipped_at(medium, dx, bed=calibration_bed)
+    if large and (found is None or found.get("dp_match", "bui2008") != dp_match):
+        raise InputError("calibration_bed", f"no large-bed plate calibration of {medium!r} is shipped "
+                         f"(Drucker-Prager match {dp_match!r}); use 'standard'")
     if found is not None and found.get("dp_match", "bui2008") != dp_match:
         found = None  # made for the other cone: not a calibration of this model
     if friction is None:
@@ -279,14 +297,18 @@ def from_medium(medium: str, youngs: float | None = None, poisson: float = 0.3,
         phi = cal["friction_deg"] * DEG
         e_cal = cal.get("youngs_Pa", NUMERICAL_E)  # the stiffness it was calibrated with
         youngs = e_cal if youngs is None else youngs
+        bed = cal.get("plate_test", {}).get("bed_pad_m")
         src = (f"calibrated: the SPH plate test (dx = {cal['dx_m'] * 1e3:g} mm, E = "
-               f"{e_cal / 1e6:g} MPa, {dp_match} match) reproduces the "
+               f"{e_cal / 1e6:g} MPa, {dp_match} match"
+               + ("" if bed is None else f", plate bed {bed * 100:g} cm beside and below it") + ") reproduces the "
                f"measured alpha_z(0, pi/2) = {cal['alpha_z_measured_N_per_cm3']:g} N/cm^3 "
                f"({LI2013}, Table S3) within {abs(cal['relative_difference']) * 100:.1f} %; "
                "terradyn sph calibrate")
         if dx is not None and abs(cal["dx_m"] - dx) > 1e-9:
-            src += (f"; this run's dx = {dx * 1e3:g} mm has no calibration of its own (shipped at "
-                    + ", ".join(f"{v:g}" for v in calibrated_spacings(medium))
+            at = ([cal["dx_m"] * 1e3] if large else calibrated_spacings(medium))
+            src += (f"; this run's dx = {dx * 1e3:g} mm has no calibration of its own (shipped "
+                    + ("in the large bed " if large else "") + "at "
+                    + ", ".join(f"{v:g}" for v in at)
                     + " mm): its plate slope differs from the measured one (docs/sph.md, Convergence)")
     else:
         phi = m.repose_angle

@@ -333,7 +333,7 @@ def leg_vs_measured(name: str, medium, *, omega=1.1, dx=4e-3, config=None, progr
 # ------------------------------------------------------------------------------- the run
 def validate(*, quick=False, scenes=SCENES, media=None, dx=None, omega=1.1, progress=None,
              figures_dir=None, realizations: int | None = None, rheology: str = "constant",
-             store=None, bed_pad: float | None = None) -> dict:
+             store=None, bed_pad: float | None = None, calibration_bed: str = "standard") -> dict:
     """Run the scenes; returns {"checks": [Check.describe()...], "details": {...}}. ``quick``:
     4 mm particles, columns a = 1 only, the rig's 3 x 5 subset, the flat leg only.
     ``realizations``: runs per leg test, averaged (:func:`leg_vs_measured`; None: 3, or 1 when
@@ -344,8 +344,11 @@ def validate(*, quick=False, scenes=SCENES, media=None, dx=None, omega=1.1, prog
     column, plate, rig and leg scenes. ``store``: a directory for the leg runs
     (:func:`leg_run`): a rerun reads the finished ones and resumes the one it was in.
     ``bed_pad``: the leg scenes' bed beyond the leg's path (m; None: the solver's default,
-    :class:`SPHConfig`)."""
+    :class:`SPHConfig`). ``calibration_bed``: "standard" or "large", which shipped
+    calibration the media take (:func:`from_medium`); with "large" the plate scene pushes
+    each plate in the bed its calibration was made in."""
     from . import plots, validation
+    from .calibration import shipped_at
     from .state import SPHConfig
     from .materials import MATERIALS, RHEOLOGIES, from_medium
 
@@ -353,7 +356,8 @@ def validate(*, quick=False, scenes=SCENES, media=None, dx=None, omega=1.1, prog
 
     def material(m, at=None):
         # the medium's calibration at the scene's particle spacing where one is shipped
-        return from_medium(m, rheology=rheology, dx=dx if at is None else at)
+        return from_medium(m, rheology=rheology, dx=dx if at is None else at,
+                           calibration_bed=calibration_bed)
 
     for s in scenes:
         choice("scene", s, list(SCENES))
@@ -365,6 +369,8 @@ def validate(*, quick=False, scenes=SCENES, media=None, dx=None, omega=1.1, prog
     media = list(media) if media else list(MATERIALS)
     for m in media:
         choice("medium", m, list(MATERIALS))
+    for m in set(media) | ({"3 mm glass CP"} if "column" in scenes else set()):
+        material(m)  # a medium without the calibration asked for: an error before any scene
     say = progress or (lambda msg: None)
     checks: list[Check] = []
     details: dict = {}
@@ -419,7 +425,9 @@ def validate(*, quick=False, scenes=SCENES, media=None, dx=None, omega=1.1, prog
         for m in media:
             say(f"plate pushed down, {m}")
             mat = material(m)
-            r = plate_slope(mat, dx=dx)
+            big = shipped_at(m, bed="large") if calibration_bed == "large" else None
+            r = plate_slope(mat, dx=dx, config=None if big is None else
+                            SPHConfig(dx=dx, bed_pad=big["plate_test"]["bed_pad_m"]))
             meas = MEDIA[m].alpha_z_plate
             checks.append(Check("plate", f"alpha_z(0, pi/2), {m}", r["alpha_z"] / N_PER_CM3,
                                 meas / N_PER_CM3, f"{LI2013}, Table S3 (the calibration target)",
@@ -471,7 +479,7 @@ def validate(*, quick=False, scenes=SCENES, media=None, dx=None, omega=1.1, prog
             "settings": {"quick": quick, "dx_m": dx, "omega_rad_s": omega, "scenes": list(scenes),
                          "leg_realizations": int(realizations),
                          "media": media, "dp_match": sorted({material(m).dp_match for m in media}),
-                         "rheology": rheology,
+                         "rheology": rheology, "calibration_bed": calibration_bed,
                          **({} if bed_pad is None else {"bed_pad_m": bed_pad})}}
 
 
