@@ -35,7 +35,7 @@ _RHEOLOGY = typer.Option("constant", "--rheology", help="Friction law: constant 
 _CHANNEL = typer.Option(None, "--channel-width-cm", help="Side walls of a quasi-2D channel this far apart, cm, with Coulomb friction pressed by the out-of-plane stress (default: none, plane strain; Lube et al. 2005's channel: 10).")
 _WALL_FRICTION = typer.Option(None, "--wall-friction-deg", help="Grain-wall friction angle of the side walls, deg, in [0, 60] (default: the medium's friction angle; needs --channel-width-cm).")
 _BED_PAD = typer.Option(None, "--bed-pad-cm", show_default="6; --quick 3", help="Granular bed beyond the leg's path below the surface, cm, in [1, 50]. The forces depend on it: from 6 to 3 cm the thrust peaks rise 7-51 %, from 6 to 9 cm they change by -16 to +4 % (docs/sph.md 'Bed size').")
-_CAL_BED = typer.Option("standard", "--calibration-bed", help="Plate bed of a Li 2013 medium's shipped friction calibration: standard (9.5 cm beside the plate, which holds it up by 1-13 %: the validated default) or large (a bed where the plate's slope has settled: 0.3-2 deg steeper; docs/sph.md 'Bed size').")
+_CAL_BED = typer.Option("standard", "--calibration-bed", help="Plate bed of a Li 2013 medium's shipped friction calibration: standard (9.5 cm beside the plate, which holds it up by 1-13 %: the validated default) or large (a bed where the plate's slope has settled: 0.3-2.7 deg steeper; docs/sph.md 'Bed size').")
 _BOUNDARY = typer.Option("resolved", "--boundary", help="Leg boundary: resolved (sides kept apart, contact at dx/4) or guard (the model before issue 17).")
 
 

@@ -50,7 +50,7 @@ OPTIONS = (
                 "repose angle unless friction_deg is given)."),
     Option("calibration_bed", str, None, choices=("standard", "large"),
            help="Plate bed of a Li 2013 medium's shipped calibration (default standard: 9.5 cm "
-                "beside the plate; large: a bed where the plate's slope has settled, 0.3-2 deg "
+                "beside the plate; large: a bed where the plate's slope has settled, 0.3-2.7 deg "
                 "steeper friction; docs/sph.md 'Bed size')."),
 )
 _CFG = {"hdx": "hdx", "cfl": "cfl", "av_alpha": "av_alpha", "av_beta": "av_beta",

@@ -258,7 +258,7 @@ def from_medium(medium: str, youngs: float | None = None, poisson: float = 0.3,
     ``calibration_bed``: "standard" (default: the calibration made in the plate test's
     standard bed, 9.5 cm beside the plate, which holds the plate up by 1-13 %) or "large"
     (the calibration made with the plate in a bed past about 0.7 of its Prandtl reach, where
-    its slope has settled: 0.3-2 deg steeper; production spacing only; docs/sph.md "Bed
+    its slope has settled: 0.3-2.7 deg steeper; production spacing only; docs/sph.md "Bed
     size"). "large" takes the calibrated friction angle, so it cannot go with
     ``friction_deg``, ``friction="repose"`` or ``dilatancy="bolton"``."""
     from .calibration import CALIBRATION_BEDS, calibrated_spacings, shipped_at
