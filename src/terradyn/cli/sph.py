@@ -301,10 +301,10 @@ def plate_cmd(medium: str = _MEDIUM, density_kg_m3: Optional[float] = _DENSITY,
     dx = default_config(quick, dx=_dx(dx_mm)).dx
     mat = _material(medium, density_kg_m3, friction_deg, dilatancy, dp_match, rheology, dx=dx,
                     calibration_bed=calibration_bed)
-    if calibration_bed == "large" and pad is None:  # the bed that calibration was made in
-        from ..sph.calibration import shipped_at
+    if pad is None:  # the bed the medium's calibration was made in (None: the standard one)
+        from ..sph.calibration import plate_bed
 
-        pad = shipped_at(medium, bed="large")["plate_test"]["bed_pad_m"]
+        pad = plate_bed(medium, calibration_bed)
     cfg = default_config(quick, dx=dx, boundary=boundary, bed_pad=pad)
     r = validation.plate_push(mat, speed=speed_cm_s * 1e-2, depth=depth_cm * 1e-2, config=cfg, below=below)
     typer.echo(json.dumps({"alpha_z_N_per_cm3": r["alpha_z"] / 1e6,

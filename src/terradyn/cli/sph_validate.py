@@ -143,17 +143,10 @@ def validate_cmd(
     from ..sph.materials import RHEOLOGIES
 
     choice("rheology", rheology, list(RHEOLOGIES))
-    from ..sph.calibration import CALIBRATION_BEDS
+    from ..errors import renamed
 
-    choice("calibration-bed", calibration_bed, list(CALIBRATION_BEDS))
-    if calibration_bed != "standard":  # every medium must have it: checked before any work
-        from ..errors import renamed
-        from ..sph.materials import MATERIALS, from_medium
-
-        with renamed(calibration_bed="calibration-bed"):
-            for m in medium or list(MATERIALS):
-                if m in MATERIALS:  # an unknown name gets its own error in the run
-                    from_medium(m, calibration_bed=calibration_bed)
+    with renamed(calibration_bed="calibration-bed"):  # before the output folder is made
+        suite.check_media(tuple(scene) or suite.SCENES, medium or None, calibration_bed)
     if realizations is not None and realizations > 1 and scene and "legs" not in scene:
         from ..models import ignored
 

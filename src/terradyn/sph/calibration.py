@@ -256,6 +256,13 @@ def shipped_at(medium: str, dx: float | None = None, bed: str = "standard") -> d
     return found.get("other_resolutions", {}).get(_mm(dx), found)
 
 
+def plate_bed(medium: str, bed: str = "standard") -> float | None:
+    """The plate bed (m beyond the plate's edges and below it) that ``medium``'s shipped
+    ``bed`` calibration was made in; None for the standard calibration bed (or none shipped)."""
+    found = shipped_at(medium, bed=bed)
+    return None if found is None else found.get("plate_test", {}).get("bed_pad_m")
+
+
 def calibrated_spacings(medium: str) -> list[float]:
     """The particle spacings (mm) at which the package ships a calibration of ``medium``."""
     found = shipped().get(medium)

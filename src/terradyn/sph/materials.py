@@ -276,11 +276,11 @@ def from_medium(medium: str, youngs: float | None = None, poisson: float = 0.3,
         raise InputError("calibration_bed", f"'large' sets the friction angle from the large-bed plate "
                          f"calibration; it cannot go with {what} (drop one)")
     found = shipped_at(medium, dx, bed=calibration_bed)
-    if large and (found is None or found.get("dp_match", "bui2008") != dp_match):
-        raise InputError("calibration_bed", f"no large-bed plate calibration of {medium!r} is shipped "
-                         f"(Drucker-Prager match {dp_match!r}); use 'standard'")
     if found is not None and found.get("dp_match", "bui2008") != dp_match:
         found = None  # made for the other cone: not a calibration of this model
+    if large and found is None:
+        raise InputError("calibration_bed", f"no large-bed plate calibration of {medium!r} is shipped "
+                         f"(Drucker-Prager match {dp_match!r}); use 'standard'")
     if friction is None:
         friction = ("calibrated" if found is not None and friction_deg is None
                     and dilatancy == "none" else "repose")

@@ -331,6 +331,24 @@ def leg_vs_measured(name: str, medium, *, omega=1.1, dx=4e-3, config=None, progr
 
 
 # ------------------------------------------------------------------------------- the run
+def check_media(scenes=SCENES, media=None, calibration_bed: str = "standard") -> list[str]:
+    """The media of a :func:`validate` run (``media``, None: the five), each checked, and
+    :class:`InputError` on ``calibration_bed`` unless every medium the scenes use (with the
+    columns' 3 mm glass CP) has that shipped calibration: :func:`validate` runs this before
+    any scene, and the CLI before it makes its folder."""
+    from .calibration import CALIBRATION_BEDS
+    from .materials import MATERIALS, from_medium
+
+    media = list(media) if media else list(MATERIALS)
+    for m in media:
+        choice("medium", m, list(MATERIALS))
+    choice("calibration_bed", calibration_bed, list(CALIBRATION_BEDS))
+    if calibration_bed != "standard":
+        for m in sorted(set(media) | ({"3 mm glass CP"} if "column" in scenes else set())):
+            from_medium(m, calibration_bed=calibration_bed)
+    return media
+
+
 def validate(*, quick=False, scenes=SCENES, media=None, dx=None, omega=1.1, progress=None,
              figures_dir=None, realizations: int | None = None, rheology: str = "constant",
              store=None, bed_pad: float | None = None, calibration_bed: str = "standard") -> dict:
@@ -348,9 +366,9 @@ def validate(*, quick=False, scenes=SCENES, media=None, dx=None, omega=1.1, prog
     calibration the media take (:func:`from_medium`); with "large" the plate scene pushes
     each plate in the bed its calibration was made in."""
     from . import plots, validation
-    from .calibration import shipped_at
+    from .calibration import plate_bed
     from .state import SPHConfig
-    from .materials import MATERIALS, RHEOLOGIES, from_medium
+    from .materials import RHEOLOGIES, from_medium
 
     choice("rheology", rheology, list(RHEOLOGIES))
 
@@ -366,11 +384,7 @@ def validate(*, quick=False, scenes=SCENES, media=None, dx=None, omega=1.1, prog
     from .api import FULL_DX
 
     dx = dx or (4e-3 if quick else FULL_DX)  # full: the production resolution (docs/sph.md, Convergence)
-    media = list(media) if media else list(MATERIALS)
-    for m in media:
-        choice("medium", m, list(MATERIALS))
-    for m in set(media) | ({"3 mm glass CP"} if "column" in scenes else set()):
-        material(m)  # a medium without the calibration asked for: an error before any scene
+    media = check_media(scenes, media, calibration_bed)  # before any scene
     say = progress or (lambda msg: None)
     checks: list[Check] = []
     details: dict = {}
@@ -425,9 +439,8 @@ def validate(*, quick=False, scenes=SCENES, media=None, dx=None, omega=1.1, prog
         for m in media:
             say(f"plate pushed down, {m}")
             mat = material(m)
-            big = shipped_at(m, bed="large") if calibration_bed == "large" else None
-            r = plate_slope(mat, dx=dx, config=None if big is None else
-                            SPHConfig(dx=dx, bed_pad=big["plate_test"]["bed_pad_m"]))
+            pad = plate_bed(m, calibration_bed)  # the bed its calibration was made in
+            r = plate_slope(mat, dx=dx, config=None if pad is None else SPHConfig(dx=dx, bed_pad=pad))
             meas = MEDIA[m].alpha_z_plate
             checks.append(Check("plate", f"alpha_z(0, pi/2), {m}", r["alpha_z"] / N_PER_CM3,
                                 meas / N_PER_CM3, f"{LI2013}, Table S3 (the calibration target)",
