@@ -440,9 +440,9 @@ def test_side_wall_friction_is_coulomb_against_the_velocity_and_stops_at_rest():
         par = mkpar(h=0.003, c0=30.0, av_alpha=0.1, av_beta=0.0, av_boundary=False, gx=0.0,
                     gz=0.0, hip_x=0.0, hip_z=0.0, hip_vx=0.0, hip_vz=0.0, omega=0.0, half_t=0.0,
                     gap=0.0, max_push=0.0, xmin=0.0, zmin=0.0, inv_cell=1.0, ncx=1, ncz=1,
-                    dt=dt, damping=0.0, vmax_allowed=30.0, wall_k=wall_k)
+                    dt=dt, damping=0.0, vmax_allowed=30.0, wall_k=wall_k, leg_mu=-1.0)
         a = {k: np.zeros(1) for k in ("x", "z", "vx", "vz", "sxx", "szz")}
-        acc = (0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0)  # no pair forces, no leg contact
+        acc = (0.0,) * 10  # no pair forces, no leg contact
         bad = kick(0, 0.0, 0.0, v[0], v[1], acc, np.ones(1), a["x"], a["z"], a["vx"], a["vz"],
                    np.full(1, rho), a["sxx"], a["szz"], np.full(1, syy), np.zeros((1, 3)),
                    np.zeros(1, np.int8), par)

@@ -50,10 +50,11 @@ _CHECKS = textwrap.dedent(r'''
     traj = td.Rotation(omega=5.0, hip_height=0.02, theta_start=-45 * DEG,
                        theta_end=-30 * DEG, n_theta=4).trajectory()
 
-    def scene(backend):  # side walls 2 cm apart: their friction is compared too
+    def scene(backend):  # side walls 2 cm apart and grain-leg friction: compared too
         return scenes.leg_scene(leg, traj, 0, bed_width=0.07, bed_depth=0.02,
                                 config=SPHConfig(dx=5e-3, settle_time=2e-4, wall_layers=2,
-                                                 backend=backend, channel_width=0.02))
+                                                 backend=backend, channel_width=0.02,
+                                                 leg_friction=0.2))
 
     nsteps = int(sys.argv[1])
     res = {}

@@ -34,6 +34,7 @@ _DP_MATCH = typer.Option("plane-strain", "--dp-match", help="Drucker-Prager cone
 _RHEOLOGY = typer.Option("constant", "--rheology", help="Friction law: constant (rate-independent, the default) or mu-i (Jop et al. 2006's mu(I) of glass beads on the medium's calibrated friction angle; a Li 2013 medium only; docs/sph.md).")
 _CHANNEL = typer.Option(None, "--channel-width-cm", help="Side walls of a quasi-2D channel this far apart, cm, with Coulomb friction pressed by the out-of-plane stress (default: none, plane strain; Lube et al. 2005's channel: 10).")
 _WALL_FRICTION = typer.Option(None, "--wall-friction-deg", help="Grain-wall friction angle of the side walls, deg, in [0, 60] (default: the medium's friction angle; needs --channel-width-cm).")
+_LEG_FRICTION = typer.Option(None, "--leg-friction-deg", help="Grain-leg friction angle, deg, in [0, 60]: Coulomb slip of the grains on the leg's surface (default: none, a rough no-slip leg; docs/sph.md 'Grain-leg friction').")
 _BED_PAD = typer.Option(None, "--bed-pad-cm", show_default="6; --quick 3", help="Granular bed beyond the leg's path below the surface, cm, in [1, 50]. The forces depend on it: from 6 to 3 cm the thrust peaks rise 7-51 %, from 6 to 9 cm they change by -16 to +4 % (docs/sph.md 'Bed size').")
 _CAL_BED = typer.Option("standard", "--calibration-bed", help="Plate bed of a Li 2013 medium's shipped friction calibration: standard (9.5 cm beside the plate, which holds it up by 1-13 %: the validated default) or large (a bed where the plate's slope has settled: 0.3-2.7 deg steeper; docs/sph.md 'Bed size').")
 _BOUNDARY = typer.Option("resolved", "--boundary", help="Leg boundary: resolved (sides kept apart, contact at dx/4) or guard (the model before issue 17).")
@@ -143,6 +144,7 @@ def run_cmd(
     cfl: float = typer.Option(0.2, help="Courant number of the time step."),
     channel_width_cm: Optional[float] = _CHANNEL,
     wall_friction_deg: Optional[float] = _WALL_FRICTION,
+    leg_friction_deg: Optional[float] = _LEG_FRICTION,
     bed_pad_cm: Optional[float] = _BED_PAD,
     lowpass_hz: Optional[float] = typer.Option(None, help="Zero-phase Butterworth low-pass of the force record, Hz (default: none)."),
     checkpoint: Optional[Path] = typer.Option(None, help="Checkpoint file: written every minute; a rerun resumes from it."),
@@ -187,6 +189,7 @@ def run_cmd(
         thickness_cm=positive("thickness-cm", thickness_cm, "cm"),
         **{k: v for k, v in (("channel_width_cm", channel_width_cm),
                              ("wall_friction_deg", wall_friction_deg),
+                             ("leg_friction_deg", leg_friction_deg),
                              ("bed_pad_cm", bed_pad_cm)) if v is not None}))
     sph_model.config(opts)
     sph_model.material(medium, opts)

@@ -39,6 +39,9 @@ OPTIONS = (
     Option("wall_friction_deg", float, None, "deg", 0, 60,
            help="Grain-wall friction angle of the side walls (default: the medium's friction "
                 "angle; needs channel_width_cm)."),
+    Option("leg_friction_deg", float, None, "deg", 0, 60,
+           help="Grain-leg friction angle: Coulomb slip of the grains on the leg's surface "
+                "(default: none, a rough no-slip leg; docs/sph.md 'Grain-leg friction')."),
     Option("dilatancy", str, None, choices=("none", "bolton"),
            help="Flow rule (default none; bolton: a CP medium dilates until its LP packing, Bolton 1986)."),
     Option("rheology", str, None, choices=("constant", "mu-i"),
@@ -81,12 +84,14 @@ def config(opts: dict, field=lambda k: k.replace("_", "-")):
         kw["wall_friction"] = math.radians(opts["wall_friction_deg"])
     if "bed_pad_cm" in opts:
         kw["bed_pad"] = opts["bed_pad_cm"] * CM
+    if "leg_friction_deg" in opts:
+        kw["leg_friction"] = math.radians(opts["leg_friction_deg"])
     try:
         cfg = SPHConfig(dx=dx, **kw)
     except InputError as e:
         f = {"dx": "dx_mm", "settle-time": "settle_time_s", "lowpass": "lowpass_hz",
              "channel-width": "channel_width_cm", "wall-friction": "wall_friction_deg",
-             "bed-pad": "bed_pad_cm"}.get(
+             "bed-pad": "bed_pad_cm", "leg-friction": "leg_friction_deg"}.get(
             e.field, e.field.replace("-", "_"))
         raise InputError(field(f), str(e).split(": ", 1)[-1]) from None
     if "backend" in opts:
@@ -182,7 +187,8 @@ def _resolve(opts: dict) -> dict:
         out["settle_time_s"] = _canon(cfg.settle_time)
     if cfg.lowpass_hz is not None:
         out["lowpass_hz"] = _canon(cfg.lowpass_hz)
-    for k in ("bed_width_cm", "bed_depth_cm", "bed_pad_cm", "channel_width_cm", "wall_friction_deg"):
+    for k in ("bed_width_cm", "bed_depth_cm", "bed_pad_cm", "channel_width_cm", "wall_friction_deg",
+              "leg_friction_deg"):
         if k in o:
             out[k] = o[k]
     return out

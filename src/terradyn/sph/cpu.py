@@ -30,7 +30,7 @@ BUF_DRHO, BUF_LXX, BUF_LXZ, BUF_LZX, BUF_LZZ = range(5)
 BUF_AX, BUF_AZ = 0, 1
 #: Columns of pass 2's (N, 3) contact scratch ``cont``: distance to the nearest guarded leg
 #: surface and its outward normal.
-CONT_DMIN, CONT_NX, CONT_NZ = range(3)
+CONT_DMIN, CONT_NX, CONT_NZ, CONT_LNX, CONT_LNZ = range(5)
 
 
 # ------------------------------------------------- CPU: each granular pair visited once
@@ -127,8 +127,8 @@ def _accel_half_pair(k, j, fdw, X, Z, VX, VZ, PXX, PZZ, PXZ, VOL, RHO, NOX, NOZ,
     buf[j, BUF_AX] -= mi * tx
     buf[j, BUF_AZ] -= mi * tz
     mj = VOL[j] * RHO[j]
-    a_x, a_z, fx, fz, tq, dmin, pnx, pnz = acc
-    return (a_x + mj * tx, a_z + mj * tz, fx, fz, tq, dmin, pnx, pnz)
+    a_x, a_z, fx, fz, tq, dmin, pnx, pnz, lnx, lnz = acc
+    return (a_x + mj * tx, a_z + mj * tz, fx, fz, tq, dmin, pnx, pnz, lnx, lnz)
 
 
 @numba.njit(inline="always", fastmath=True)
@@ -136,7 +136,8 @@ def _accel_half_one(k, X, Z, VX, VZ, PXX, PZZ, PXZ, VOL, RHO, NOX, NOZ, KND, DCL
                     cell_index, cell_start, mass, nbj, nbw, nbn, buf, fleg, cont, par):
     """Pass 2's pair sums of granular column ``k`` over its half list (see
     :func:`_strain_half_one`): accelerations to buf[k, 0:2], its force on the leg to
-    fleg[i], the contact guard's nearest leg surface (dmin, nx, nz) to cont[k]."""
+    fleg[i], the contact guard's nearest leg surface (dmin, nx, nz) and the summed normals of
+    the leg particles it sees (:func:`terradyn.sph.physics._accel_pair`) to cont[k]."""
     if KND[k] != SOIL:
         return
     h = par.h
@@ -145,7 +146,7 @@ def _accel_half_one(k, X, Z, VX, VZ, PXX, PZZ, PXZ, VOL, RHO, NOX, NOZ, KND, DCL
     pp = _accel_pp(k, X, Z, VX, VZ, PXX, PZZ, PXZ, RHO, mass[i], par)
     xi = X[k]
     zi = Z[k]
-    acc = (0.0, 0.0, 0.0, 0.0, 0.0, par.gap, 0.0, 0.0)  # a_x, a_z, fx, fz, tq, dmin, pnx, pnz
+    acc = (0.0, 0.0, 0.0, 0.0, 0.0, par.gap, 0.0, 0.0, 0.0, 0.0)  # see _accel_pair
     cnt = nbn[k]
     if cnt >= 0:
         for n in range(cnt):
@@ -162,7 +163,7 @@ def _accel_half_one(k, X, Z, VX, VZ, PXX, PZZ, PXZ, VOL, RHO, NOX, NOZ, KND, DCL
                     if fdw != 0.0:
                         acc = _accel_half_pair(k, j, fdw, X, Z, VX, VZ, PXX, PZZ, PXZ, VOL,
                                                RHO, NOX, NOZ, KND, DCL, GRD, pp, buf, acc)
-    a_x, a_z, fx, fz, tq, dmin, pnx, pnz = acc
+    a_x, a_z, fx, fz, tq, dmin, pnx, pnz, lnx, lnz = acc
     buf[k, BUF_AX] += a_x
     buf[k, BUF_AZ] += a_z
     fleg[i, FLEG_X] = fx
@@ -171,6 +172,8 @@ def _accel_half_one(k, X, Z, VX, VZ, PXX, PZZ, PXZ, VOL, RHO, NOX, NOZ, KND, DCL
     cont[k, CONT_DMIN] = dmin
     cont[k, CONT_NX] = pnx
     cont[k, CONT_NZ] = pnz
+    cont[k, CONT_LNX] = lnx
+    cont[k, CONT_LNZ] = lnz
 
 
 # ------------------------------------------------------------------ CPU kernels (prange)
@@ -276,14 +279,15 @@ def strain_stress(srt, srtk, cell_index, h, xmin, zmin, inv_cell, ncx, ncz, cell
 def accelerations_kick(srt, srtk, cell_index, mass, h, c0, av_alpha, av_beta, av_boundary, gx,
                        gz, hip_x, hip_z, hip_vx, hip_vz, omega, half_t, gap, max_push, xmin, zmin,
                        inv_cell, ncx, ncz, cell_start, x, z, vx, vz, rho, sxx, szz, syy, dt,
-                       damping, vmax_allowed, wall_k, fleg, bad, nbj, nbw, nbn, buf, cont, bounds,
+                       damping, vmax_allowed, wall_k, leg_mu, fleg, bad, nbj, nbw, nbn, buf, cont,
+                       bounds,
                        nchunk):
     """Second pass (stresses): acceleration of every granular particle, the force it exerts on
     the leg (fleg[i] = (Fx, Fz, torque about (hip_x, hip_z)), per unit depth), and its kick and
     drift: v += dt a (optionally damped), x += dt v (symplectic Euler). The pair sums read
     only the cell-ordered copies made by :func:`gather`; the particles move after them.
     Returns the number of particles that went non-finite or faster than ``vmax_allowed``
-    (``bad[i]`` = 1 for those). buf: (N, 5) zeros, left zero; cont: (N, 3) scratch; bounds,
+    (``bad[i]`` = 1 for those). buf: (N, 5) zeros, left zero; cont: (N, 5) scratch; bounds,
     nchunk: the chunks of :func:`chunk_bounds`. Artificial
     viscosity acts between granular particles, and on wall/leg pairs only if ``av_boundary``:
     its stress ~ alpha rho c v scales with the (numerical) sound speed and would add a drag
@@ -315,7 +319,7 @@ def accelerations_kick(srt, srtk, cell_index, mass, h, c0, av_alpha, av_beta, av
     GRD = srtk[SRTK_GRD]
     par = _accel_par(h, c0, av_alpha, av_beta, av_boundary, gx, gz, hip_x, hip_z, hip_vx, hip_vz,
                      omega, half_t, gap, max_push, xmin, zmin, inv_cell, ncx, ncz, dt, damping,
-                     vmax_allowed, wall_k)
+                     vmax_allowed, wall_k, leg_mu)
     for phase in range(2):
         for c in prange((nchunk + 1 - phase) // 2):
             cc = 2 * c + phase
@@ -328,7 +332,8 @@ def accelerations_kick(srt, srtk, cell_index, mass, h, c0, av_alpha, av_beta, av
             continue
         i = cell_index[k]
         acc = (buf[k, BUF_AX], buf[k, BUF_AZ], fleg[i, FLEG_X], fleg[i, FLEG_Z], fleg[i, FLEG_TQ],
-               cont[k, CONT_DMIN], cont[k, CONT_NX], cont[k, CONT_NZ])
+               cont[k, CONT_DMIN], cont[k, CONT_NX], cont[k, CONT_NZ], cont[k, CONT_LNX],
+               cont[k, CONT_LNZ])
         buf[k, BUF_AX] = 0.0
         buf[k, BUF_AZ] = 0.0
         nbad += _kick_one(i, X[k], Z[k], VX[k], VZ[k], acc, mass, x, z, vx, vz, rho, sxx, szz,
@@ -377,14 +382,14 @@ def leg_sides(x, z, kind, dcl, cl, hip_x, hip_z, ang, box, reach2):
 FP = ("h", "xmin", "zmin", "inv_cell", "gx", "gz", "dt", "shear_mod", "bulk_mod", "alpha_phi",
       "k_c", "rho_min", "rho_max", "c0", "av_alpha", "av_beta", "half_t", "gap", "max_push",
       "vmax_allowed", "side_reach2", "alpha_psi", "rho_crit", "wall_k", "mu_s", "mu_rise", "mu_i0",
-      "mu_dscale")
+      "mu_dscale", "leg_mu")
 #: Integers of :func:`cpu_steps` (int64 array ``ip``): grid size, flags, and two counters it
 #: updates: the pair chunks and the list builds so far.
 IP = ("ncx", "ncz", "noslip", "av_boundary", "has_leg", "nchunk", "builds", "sides")
 (FP_H, FP_XMIN, FP_ZMIN, FP_INV_CELL, FP_GX, FP_GZ, FP_DT, FP_SHEAR_MOD, FP_BULK_MOD,
  FP_ALPHA_PHI, FP_K_C, FP_RHO_MIN, FP_RHO_MAX, FP_C0, FP_AV_ALPHA, FP_AV_BETA, FP_HALF_T, FP_GAP,
  FP_MAX_PUSH, FP_VMAX_ALLOWED, FP_SIDE_REACH2, FP_ALPHA_PSI, FP_RHO_CRIT, FP_WALL_K, FP_MU_S,
- FP_MU_RISE, FP_MU_I0, FP_MU_DSCALE) = range(len(FP))
+ FP_MU_RISE, FP_MU_I0, FP_MU_DSCALE, FP_LEG_MU) = range(len(FP))
 (IP_NCX, IP_NCZ, IP_NOSLIP, IP_AV_BOUNDARY, IP_HAS_LEG, IP_NCHUNK, IP_BUILDS,
  IP_SIDES) = range(len(IP))
 
@@ -425,6 +430,7 @@ def cpu_steps(poses, dampings, forces, x, z, vx, vz, rho, sxx, szz, sxz, syy, gv
     vmax_allowed = fp[FP_VMAX_ALLOWED]
     side_reach2 = fp[FP_SIDE_REACH2]
     wall_k = fp[FP_WALL_K]
+    leg_mu = fp[FP_LEG_MU]
     mu_s = fp[FP_MU_S]
     mu_rise = fp[FP_MU_RISE]
     mu_i0 = fp[FP_MU_I0]
@@ -480,7 +486,7 @@ def cpu_steps(poses, dampings, forces, x, z, vx, vz, rho, sxx, szz, sxz, syy, gv
             srt, srtk, cell_index, mass, h, c0, av_alpha, av_beta, av_boundary, gx, gz, hip_x,
             hip_z, hip_vx, hip_vz, omega, half_t, gap, max_push, xmin, zmin, inv_cell, ncx, ncz,
             cell_start, x, z, vx, vz, rho, sxx, szz, syy, dt, dampings[s], vmax_allowed, wall_k,
-            fleg, bad, nbj, nbw, nbn, buf, cont, bounds, nchunk)
+            leg_mu, fleg, bad, nbj, nbw, nbn, buf, cont, bounds, nchunk)
         if nbad:
             return s, nbad
         if has_leg:
@@ -510,7 +516,7 @@ class CPUBackend:
         self.zb = np.full(n, np.inf)
         # the pair passes' buffer for the other particle of a pair, and their chunks
         self.buf = np.zeros((n, 5))
-        self.cont = np.zeros((n, 3))
+        self.cont = np.zeros((n, 5))
         self.bounds = np.zeros(MAX_CHUNKS + 1, np.int64)
         leg = s.scene.leg
         self.body = (np.ascontiguousarray(np.stack([getattr(leg, r) for r in BODY]),
@@ -525,7 +531,8 @@ class CPUBackend:
                    rho_max=1.1 * mat.density, c0=s.c0, av_alpha=cfg.av_alpha,
                    av_beta=cfg.av_beta, half_t=s.half_t, gap=s.gap, max_push=0.1 * cfg.dx,
                    vmax_allowed=s.vmax_allowed, side_reach2=s.side_reach ** 2,
-                   alpha_psi=mat.alpha_psi, rho_crit=mat.dilation_limit, wall_k=s.wall_k)
+                   alpha_psi=mat.alpha_psi, rho_crit=mat.dilation_limit, wall_k=s.wall_k,
+                   leg_mu=s.leg_mu)
         val.update(mat.rate_constants)
         self.fp = np.array([val[k] for k in FP], dtype=np.float64)
         ival = dict(ncx=s.ncx, ncz=s.ncz, noslip=int(bool(cfg.noslip)),

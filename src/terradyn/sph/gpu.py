@@ -513,7 +513,7 @@ class GPUBackend:
             h, float(s.c0), float(cfg.av_alpha), float(cfg.av_beta), bool(cfg.av_boundary), gx,
             gz, hip_x, hip_z, hip_vx, hip_vz, omega, float(s.half_t), float(s.gap),
             float(0.1 * cfg.dx), xmin, zmin, inv_cell, ncx, ncz, dt, float(damping),
-            float(s.vmax_allowed), float(s.wall_k))
+            float(s.vmax_allowed), float(s.wall_k), float(s.leg_mu))
         _k_accel[nb, TPB](self.srt, self.srtk, b.cell_index, b.cell_start, self.S, self.fleg,
                           self.bad, *self.nb[2:], par, self.acc)
         a = self.acc.copy_to_host()

@@ -70,10 +70,11 @@ StrainPar = namedtuple("StrainPar", "h xmin zmin inv_cell ncx ncz dt shear_mod b
 #: sound speed, artificial viscosity, gravity, the hip's position and velocity and the leg's
 #: clockwise angular speed, the contact guard (leg half thickness, gap, largest push per
 #: step), time step, damping factor 1 / (1 + damping dt), the speed limit of stability, and
-#: the side-wall friction factor wall_k = 2 mu_w / W (1/m; 0: plane strain without walls).
+#: the side-wall friction factor wall_k = 2 mu_w / W (1/m; 0: plane strain without walls), and
+#: the grain-leg friction coefficient leg_mu (< 0: a rough, no-slip leg).
 AccelPar = namedtuple("AccelPar", "h xmin zmin inv_cell ncx ncz c0 av_alpha av_beta av_boundary "
                                   "gx gz hip_x hip_z hip_vx hip_vz omega half_t gap max_push dt "
-                                  "fdamp vmax_allowed wall_k")
+                                  "fdamp vmax_allowed wall_k leg_mu")
 #: One granular particle's scalars that its pair terms read (:func:`_accel_pp`): h, h^2, the
 #: viscosity and guard constants of :class:`AccelPar`, its position, velocity, density,
 #: sigma / rho^2 and mass.
@@ -455,12 +456,14 @@ def _accel_pair(j, fdw, X, Z, VX, VZ, PXX, PZZ, PXZ, VOL, RHO, NOX, NOZ, KND, DC
     """One neighbour ``j`` (column of the gathered copy, inside the support, on the same side
     of the leg) of :func:`_accel_kick_one`'s particle; fdw: the kernel gradient factor
     (grad W = fdw r_ij). pp: that particle's scalars (:class:`PairPar`), acc: its running
-    sums (a_x, a_z, fx, fz, torque, dmin, pnx, pnz); returns the updated sums."""
+    sums (a_x, a_z, fx, fz, torque, dmin, pnx, pnz, lnx, lnz: (lnx, lnz) the leg's boundary
+    normal at the grain, -sum_j V_j grad_i W_ij over the leg particles it sees, for the
+    grain-leg friction of :func:`_kick_one`); returns the updated sums."""
     half_t = pp.half_t
     hip_x = pp.hip_x
     hip_z = pp.hip_z
     mi = pp.mi
-    a_x, a_z, fx, fz, tq, dmin, pnx, pnz = acc
+    a_x, a_z, fx, fz, tq, dmin, pnx, pnz, lnx, lnz = acc
     rx = pp.xi - X[j]
     rz = pp.zi - Z[j]
     tx, tz = _stress_term(j, fdw, rx, rz, VX, VZ, PXX, PZZ, PXZ, RHO, KND, pp)
@@ -480,7 +483,13 @@ def _accel_pair(j, fdw, X, Z, VX, VZ, PXX, PZZ, PXZ, VOL, RHO, NOX, NOZ, KND, DC
         fx -= mi * pax
         fz -= mi * paz
         tq -= mi * ((X[j] - hip_x) * paz - (Z[j] - hip_z) * pax)
-    return (a_x, a_z, fx, fz, tq, dmin, pnx, pnz)
+        # the leg's boundary normal at the grain: -sum_j V_j grad_i W_ij over its leg
+        # particles (points from them to the grain; along the face normal beside a face,
+        # along the chord ahead of an end, which carries no end markers)
+        wv = -VOL[j] * fdw
+        lnx += wv * rx
+        lnz += wv * rz
+    return (a_x, a_z, fx, fz, tq, dmin, pnx, pnz, lnx, lnz)
 
 
 @_source
@@ -495,13 +504,48 @@ def _accel_pp(k, X, Z, VX, VZ, PXX, PZZ, PXZ, RHO, mi, par):
 
 
 @_source
+def _leg_slip(rx, rz, mi, a_x, a_z, fx, fz, tq, lnx, lnz, mu):
+    """Coulomb's cap on the leg's force on one grain (see :func:`_kick_one`): the grain at
+    (rx, rz) from the hip, of mass ``mi``, with acceleration (a_x, a_z) and force on the leg
+    (fx, fz, torque tq) from its pair terms, (lnx, lnz) the leg's boundary normal there (any
+    length), mu the friction coefficient. Returns (a_x, a_z, fx, fz, tq) with the
+    leg's tangential force on the grain at most mu times its normal push; the part taken off
+    acts at the grain's position."""
+    inv = 1.0 / math.sqrt(lnx * lnx + lnz * lnz)
+    nx = lnx * inv
+    nz = lnz * inv
+    # the leg's force on the grain is minus the grain's on the leg
+    fn = -(fx * nx + fz * nz)
+    ftx = -fx - fn * nx
+    ftz = -fz - fn * nz
+    ft = math.sqrt(ftx * ftx + ftz * ftz)
+    cap = mu * fn if fn > 0.0 else 0.0
+    if ft <= cap:
+        return a_x, a_z, fx, fz, tq
+    k = cap / ft - 1.0  # the change of the tangential force, as a multiple of it
+    dfx = k * ftx
+    dfz = k * ftz
+    return (a_x + dfx / mi, a_z + dfz / mi, fx - dfx, fz - dfz,
+            tq - (rx * dfz - rz * dfx))
+
+
+@_source
 def _kick_one(i, xi, zi, vxi, vzi, acc, mass, x, z, vx, vz, rho, sxx, szz, syy, fleg, bad,
               par):
     """Kick, contact and drift of granular particle ``i`` (at xi, zi with velocity vxi, vzi
     at the start of the step) from its summed pair terms acc = (a_x, a_z, fx, fz, torque,
-    dmin, pnx, pnz) (see :func:`_accel_pair`); writes its velocity, position and force on
-    the leg; par: the :class:`AccelPar` of the step. Returns 1 if it went non-finite or too
-    fast, else 0.
+    dmin, pnx, pnz, lnx, lnz) (see :func:`_accel_pair`); writes its velocity, position and
+    force on the leg; par: the :class:`AccelPar` of the step. Returns 1 if it went
+    non-finite or too fast, else 0.
+
+    Grain-leg friction (par.leg_mu >= 0; a rough, no-slip leg otherwise): Coulomb's law on
+    the force the leg's particles exert on this grain. Split along the leg's boundary normal
+    n at the grain (-sum_j V_j grad W_ij over the leg particles it sees, the usual SPH
+    boundary normal: the face normal beside a face, the chord's direction ahead of an end),
+    its tangential part is capped at
+    leg_mu times its normal push (none where the leg pulls); below the cap the no-slip force
+    stands (stick), above it the grain slides with the capped force. The part taken off
+    leaves the grain's acceleration and the leg's force together, so momentum stays balanced.
 
     Side walls (par.wall_k > 0, a quasi-2D channel of width W): Coulomb friction of the two
     walls, each pressed by the out-of-plane stress -sigma_yy, averaged over the width: a
@@ -511,7 +555,10 @@ def _kick_one(i, xi, zi, vxi, vzi, acc, mass, x, z, vx, vz, rho, sxx, szz, syy, 
     gx, gz, dt, fdamp, vmax_allowed = par.gx, par.gz, par.dt, par.fdamp, par.vmax_allowed
     hip_x, hip_z, hip_vx, hip_vz, omega = par.hip_x, par.hip_z, par.hip_vx, par.hip_vz, par.omega
     gap, max_push = par.gap, par.max_push
-    a_x, a_z, fx, fz, tq, dmin, pnx, pnz = acc
+    a_x, a_z, fx, fz, tq, dmin, pnx, pnz, lnx, lnz = acc
+    if par.leg_mu >= 0.0 and (lnx != 0.0 or lnz != 0.0):
+        a_x, a_z, fx, fz, tq = _leg_slip(xi - hip_x, zi - hip_z, mass[i], a_x, a_z, fx, fz, tq,
+                                         lnx, lnz, par.leg_mu)
     nvx = (vxi + dt * (a_x + gx)) * fdamp
     nvz = (vzi + dt * (a_z + gz)) * fdamp
     if par.wall_k > 0.0 and syy[i] < 0.0:
@@ -568,7 +615,7 @@ def _accel_kick_one(k, X, Z, VX, VZ, PXX, PZZ, PXZ, VOL, RHO, NOX, NOZ, KND, DCL
     pp = _accel_pp(k, X, Z, VX, VZ, PXX, PZZ, PXZ, RHO, mass[i], par)
     xi = X[k]
     zi = Z[k]
-    acc = (0.0, 0.0, 0.0, 0.0, 0.0, par.gap, 0.0, 0.0)  # a_x, a_z, fx, fz, tq, dmin, pnx, pnz
+    acc = (0.0, 0.0, 0.0, 0.0, 0.0, par.gap, 0.0, 0.0, 0.0, 0.0)  # see _accel_pair
     nbj, nbw, nbn = nb
     cnt = nbn[k]
     if cnt >= 0:
@@ -591,7 +638,7 @@ def _accel_kick_one(k, X, Z, VX, VZ, PXX, PZZ, PXZ, VOL, RHO, NOX, NOZ, KND, DCL
 @_source
 def _accel_par(h, c0, av_alpha, av_beta, av_boundary, gx, gz, hip_x, hip_z, hip_vx, hip_vz,
                omega, half_t, gap, max_push, xmin, zmin, inv_cell, ncx, ncz, dt, damping,
-               vmax_allowed, wall_k):
+               vmax_allowed, wall_k, leg_mu):
     """The scalars of :func:`_accel_kick_one` as one :class:`AccelPar` (the damping rate
     becomes the factor fdamp = 1 / (1 + damping dt))."""
     fdamp = 1.0 / (1.0 + damping * dt)
@@ -599,7 +646,7 @@ def _accel_par(h, c0, av_alpha, av_beta, av_boundary, gx, gz, hip_x, hip_z, hip_
                     av_alpha=av_alpha, av_beta=av_beta, av_boundary=av_boundary, gx=gx, gz=gz,
                     hip_x=hip_x, hip_z=hip_z, hip_vx=hip_vx, hip_vz=hip_vz, omega=omega,
                     half_t=half_t, gap=gap, max_push=max_push, dt=dt, fdamp=fdamp,
-                    vmax_allowed=vmax_allowed, wall_k=wall_k)
+                    vmax_allowed=vmax_allowed, wall_k=wall_k, leg_mu=leg_mu)
 
 
 @_source

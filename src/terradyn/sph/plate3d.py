@@ -1245,6 +1245,9 @@ class Solver3D:
             raise InputError("channel-width", "is a setting of the 2D model (its side walls "
                              "are modelled as friction); a 3D scene has none, got "
                              f"{cfg.channel_width!r} m")
+        if cfg.leg_friction is not None:
+            raise InputError("leg-friction", "grain-leg slip is in the 2D solver only; the 3D "
+                             "solver's plate and legs are rough (no-slip): leave it unset")
         if mat.mu_rise > 0.0:  # dp_update3 has no rate dependence: refuse, never ignore
             raise InputError("rheology", "mu(I) ('mu-i') is in the 2D solver only; the 3D solver's "
                              "friction is rate-independent: use rheology 'constant'")

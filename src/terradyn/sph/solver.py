@@ -149,6 +149,8 @@ class Solver:
         else:
             mu_w = math.tan(cfg.wall_friction if cfg.wall_friction is not None else mat.friction)
             self.wall_k = 2.0 * mu_w / cfg.channel_width
+        # grain-leg friction coefficient; -1: a rough (no-slip) leg
+        self.leg_mu = -1.0 if cfg.leg_friction is None else math.tan(cfg.leg_friction)
         self.t = 0.0
         self.step_count = 0
         self._grid()

@@ -67,7 +67,9 @@ class SPHConfig:
     channel_width: side walls of a quasi-2D channel this far apart (m; None: plane strain
     without walls), each with Coulomb friction wall_friction (rad; None: the material's
     friction angle, walls as rough as the medium) pressed by the out-of-plane stress
-    (:func:`terradyn.sph.physics._kick_one`); bed_pad: granular bed around the leg's path
+    (:func:`terradyn.sph.physics._kick_one`); leg_friction: grain-leg friction angle (rad;
+    None: a rough, no-slip leg, the default): Coulomb slip of the grains on the leg's surface
+    (:func:`terradyn.sph.physics._leg_slip`); bed_pad: granular bed around the leg's path
     below the surface in the leg scenes (m; None: 6 cm, 3 cm with ``quick``; see "Bed size"
     in docs/sph.md)."""
 
@@ -88,6 +90,7 @@ class SPHConfig:
     channel_width: float | None = None
     wall_friction: float | None = None
     bed_pad: float | None = None
+    leg_friction: float | None = None
 
     def __post_init__(self):
         positive("dx", self.dx, "m")
@@ -111,6 +114,11 @@ class SPHConfig:
             in_range("wall-friction", self.wall_friction, 0.0, math.radians(60.0), "rad")
         if self.bed_pad is not None:
             in_range("bed-pad", self.bed_pad, *BED_PAD_RANGE, "m")
+        if self.leg_friction is not None:
+            in_range("leg-friction", self.leg_friction, 0.0, math.radians(60.0), "rad")
+            if not self.noslip:
+                raise InputError("leg-friction", "is the friction of a no-slip leg's surface; "
+                                 "with noslip off the leg is already frictionless")
         if self.backend not in BACKENDS:
             raise InputError("backend", f"must be one of {', '.join(map(repr, BACKENDS))}, "
                                         f"got {self.backend!r}")
@@ -125,7 +133,7 @@ class SPHConfig:
         checkpoints written before they existed still resume)."""
         d = asdict(self)
         d.pop("backend")
-        for k in ("channel_width", "wall_friction", "bed_pad"):
+        for k in ("channel_width", "wall_friction", "bed_pad", "leg_friction"):
             if d[k] is None:
                 d.pop(k)
         return d

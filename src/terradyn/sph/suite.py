@@ -65,21 +65,23 @@ def measured_legs():
 
 # ----------------------------------------------------------------------------- plate rig
 def rig_point(mat, beta: float, gamma: float, *, dx=4e-3, depth=0.03, travel=0.02,
-              speed=0.02, config=None) -> tuple[float, float]:
+              speed=0.02, config=None, realization: int = 0) -> tuple[float, float]:
     """SPH's alpha_z, alpha_x (N/m^3) of Li 2013's small plate (3.81 cm chord, 2.54 cm wide,
     0.64 cm thick) at attack angle ``beta`` moving in direction ``gamma`` (rad; Li's
     conventions: beta > 0 leading edge up, gamma > 0 downward, alpha_z + up, alpha_x +
     against the motion's horizontal component; the motion is (cos gamma, -sin gamma)). The
     plate starts in the settled bed with its centre ``travel``/2 before ``depth`` along its
     path and moves ``travel`` at ``speed``; alpha = force / (area |z_centre|), averaged over
-    the second half of the travel (after the failure has formed)."""
+    the second half of the travel (after the failure has formed). ``realization`` k > 0
+    starts the plate k x 10 nm higher (another realization of the chaotic flow, as
+    :func:`terradyn.sph.validation.plate_push` does)."""
     from .api import simulate
     from .state import SPHConfig
 
     L, W, T = RIG_PLATE
     cfg = config or SPHConfig(dx=dx)
     ux, uz = math.cos(gamma), -math.sin(gamma)
-    c0 = np.array([-0.5 * travel * ux, -depth - 0.5 * travel * uz])
+    c0 = np.array([-0.5 * travel * ux, -depth - 0.5 * travel * uz + 1e-8 * int(realization)])
     dur = travel / speed
     t = np.linspace(0.0, dur, 41)
     cx = c0[0] + ux * speed * t
