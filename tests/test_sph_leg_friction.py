@@ -122,3 +122,43 @@ def test_rig_plate_sliding_along_itself_feels_its_friction():
     assert rough > 0.0
     assert smooth < 0.4 * rough
     assert sixty == pytest.approx(rough, rel=0.1)
+
+
+def test_validate_checks_leg_friction_before_making_the_folder(capsys, tmp_path):
+    out = tmp_path / "v"
+    assert main(["sph", "validate", "--quick", "--out", str(out), "--leg-friction-deg", "75"]) == 2
+    _one_line_error(capsys, "leg-friction-deg", "[0, 60] deg")
+    assert not out.exists()
+
+
+def test_validate_passes_leg_friction_to_the_plate_rig_and_legs(monkeypatch):
+    """Every scene with a leg or plate runs with the grain-leg friction asked for (and with
+    the default configuration when it is not)."""
+    from terradyn.sph import calibration, suite
+
+    seen = []
+
+    def plate(mat, *, dx, config=None, **kw):
+        seen.append(("plate", None if config is None else config.leg_friction))
+        return {"alpha_z": 1.0, "slope": 1.0, "intercept_Pa": 0.0}
+
+    def rig(mat, beta, gamma, *, dx, config=None, **kw):
+        seen.append(("rig", None if config is None else config.leg_friction))
+        return 0.0, 0.0
+
+    def legs(name, medium, *, config=None, **kw):
+        seen.append(("legs", None if config is None else config.leg_friction))
+        raise StopIteration
+
+    monkeypatch.setattr(calibration, "plate_slope", plate)
+    monkeypatch.setattr(suite, "rig_point", rig)
+    monkeypatch.setattr(suite, "leg_vs_measured", legs)
+    for lf in (None, 20 * DEG):
+        seen.clear()
+        with pytest.raises(StopIteration):
+            suite.validate(quick=True, scenes=("plate", "rig", "legs"), media=["poppy LP"],
+                           leg_friction=lf)
+        assert {k for k, _ in seen} == {"plate", "rig", "legs"}
+        assert all(v == lf for _, v in seen)
+    with pytest.raises(InputError, match="leg-friction"):
+        suite.validate(quick=True, scenes=("plate",), media=["poppy LP"], leg_friction=-1.0)

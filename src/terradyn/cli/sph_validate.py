@@ -118,6 +118,7 @@ def validate_cmd(
     rheology: str = typer.Option("constant", "--rheology", help="Friction law of the column, plate, rig and leg scenes: constant (rate-independent) or mu-i (Jop et al. 2006's mu(I) on each medium's calibrated angle; docs/sph.md)."),
     bed_pad_cm: Optional[float] = typer.Option(None, "--bed-pad-cm", show_default="6", help="Leg tests: granular bed beyond the leg's path below the surface, cm, in [1, 50] (docs/sph.md 'Bed size')."),
     calibration_bed: str = typer.Option("standard", "--calibration-bed", help="Which shipped friction calibration the media take: standard (plate in the 9.5 cm calibration bed) or large (plate in a bed where its slope has settled; the plate scene then runs in that bed). docs/sph.md 'Bed size'."),
+    leg_friction_deg: Optional[float] = typer.Option(None, "--leg-friction-deg", help="Grain-leg friction angle of the plate, rig and leg scenes, deg, in [0, 60]: a measured grain-surface friction (default: none, a rough no-slip leg; docs/sph.md 'Grain-leg friction')."),
 ):
     """Run the SPH validation scenes and compare with measurements: validation.json (quantity,
     ours, reference, source, difference, verdict) and figures in OUT.
@@ -138,6 +139,16 @@ def validate_cmd(
     dx = None if dx_mm is None else in_range("dx-mm", dx_mm, 1.0, 10.0, "mm") * 1e-3
     in_range("omega", omega, 0.01, 10.0, "rad/s")
     pad = None if bed_pad_cm is None else bed_pad_m("bed-pad-cm", bed_pad_cm)
+    leg_friction = None
+    if leg_friction_deg is not None:
+        from ..units import DEG
+
+        leg_friction = in_range("leg-friction-deg", leg_friction_deg, 0.0, 60.0, "deg") * DEG
+        if scene and not set(scene) & {"plate", "rig", "legs"}:
+            from ..models import ignored
+
+            ignored("leg-friction-deg", "applies to the plate, rig and leg scenes only, and "
+                                        "--scene includes none of them")
     if realizations is not None:
         suite.check_realizations(realizations)  # before the output folder is made
     from ..sph.materials import RHEOLOGIES
@@ -161,7 +172,8 @@ def validate_cmd(
     res = suite.validate(quick=quick, scenes=tuple(scene) or suite.SCENES, media=medium or None,
                          dx=dx, omega=omega, progress=lambda m: err(f"[dim]{m}[/]"),
                          figures_dir=out, realizations=realizations, rheology=rheology,
-                         store=out / "runs", bed_pad=pad, calibration_bed=calibration_bed)
+                         store=out / "runs", bed_pad=pad, calibration_bed=calibration_bed,
+                         leg_friction=leg_friction)
     res["summary"] = suite.summary(res)
     _atomic_json(out / "validation.json", res)
     for c in res["checks"]:

@@ -109,10 +109,11 @@ def rig_grid(quick: bool):
     return np.linspace(-np.pi / 3, np.pi / 2, 6), np.linspace(-np.pi / 2, np.pi / 2, 13)
 
 
-def plate_rig(mat, *, quick=False, dx=4e-3, progress=None) -> dict:
+def plate_rig(mat, *, quick=False, dx=4e-3, progress=None, config=None) -> dict:
     """SPH alpha maps of ``mat`` on :func:`rig_grid` with the measured Table S5 values at the
     same points (N/cm^3) and the RMS differences as fractions of the largest measured
-    |alpha_z| (the issue-17 target: <= 0.2 each)."""
+    |alpha_z| (the issue-17 target: <= 0.2 each). ``config``: the :class:`SPHConfig` of every
+    point (None: the defaults at ``dx``)."""
     betas, gammas = rig_grid(quick)
     B, G = np.meshgrid(betas, gammas, indexing="ij")
     az = np.zeros(B.shape)
@@ -120,7 +121,7 @@ def plate_rig(mat, *, quick=False, dx=4e-3, progress=None) -> dict:
     k = 0
     for i in range(B.shape[0]):
         for j in range(B.shape[1]):
-            az[i, j], ax[i, j] = rig_point(mat, B[i, j], G[i, j], dx=dx)
+            az[i, j], ax[i, j] = rig_point(mat, B[i, j], G[i, j], dx=dx, config=config)
             k += 1
             if progress:
                 progress(k, B.size)
@@ -353,7 +354,8 @@ def check_media(scenes=SCENES, media=None, calibration_bed: str = "standard") ->
 
 def validate(*, quick=False, scenes=SCENES, media=None, dx=None, omega=1.1, progress=None,
              figures_dir=None, realizations: int | None = None, rheology: str = "constant",
-             store=None, bed_pad: float | None = None, calibration_bed: str = "standard") -> dict:
+             store=None, bed_pad: float | None = None, calibration_bed: str = "standard",
+             leg_friction: float | None = None) -> dict:
     """Run the scenes; returns {"checks": [Check.describe()...], "details": {...}}. ``quick``:
     4 mm particles, columns a = 1 only, the rig's 3 x 5 subset, the flat leg only.
     ``realizations``: runs per leg test, averaged (:func:`leg_vs_measured`; None: 3, or 1 when
@@ -366,7 +368,9 @@ def validate(*, quick=False, scenes=SCENES, media=None, dx=None, omega=1.1, prog
     ``bed_pad``: the leg scenes' bed beyond the leg's path (m; None: the solver's default,
     :class:`SPHConfig`). ``calibration_bed``: "standard" or "large", which shipped
     calibration the media take (:func:`from_medium`); with "large" the plate scene pushes
-    each plate in the bed its calibration was made in."""
+    each plate in the bed its calibration was made in. ``leg_friction``: the grain-leg
+    friction angle (rad; None: a rough, no-slip leg and plate) of the plate, rig and leg
+    scenes (:class:`SPHConfig`)."""
     from . import plots, validation
     from .calibration import plate_bed
     from .state import SPHConfig
@@ -386,6 +390,14 @@ def validate(*, quick=False, scenes=SCENES, media=None, dx=None, omega=1.1, prog
     from .api import FULL_DX
 
     dx = dx or (4e-3 if quick else FULL_DX)  # full: the production resolution (docs/sph.md, Convergence)
+
+    def config(at, pad=None):
+        # None where every setting is the default: the scenes' own default configurations
+        if pad is None and leg_friction is None:
+            return None
+        return SPHConfig(dx=at, bed_pad=pad, leg_friction=leg_friction)
+
+    config(dx)  # a bad leg_friction: refused before any scene
     media = check_media(scenes, media, calibration_bed)  # before any scene
     say = progress or (lambda msg: None)
     checks: list[Check] = []
@@ -442,7 +454,7 @@ def validate(*, quick=False, scenes=SCENES, media=None, dx=None, omega=1.1, prog
             say(f"plate pushed down, {m}")
             mat = material(m)
             pad = plate_bed(m, calibration_bed)  # the bed its calibration was made in
-            r = plate_slope(mat, dx=dx, config=None if pad is None else SPHConfig(dx=dx, bed_pad=pad))
+            r = plate_slope(mat, dx=dx, config=config(dx, pad))
             meas = MEDIA[m].alpha_z_plate
             checks.append(Check("plate", f"alpha_z(0, pi/2), {m}", r["alpha_z"] / N_PER_CM3,
                                 meas / N_PER_CM3, f"{LI2013}, Table S3 (the calibration target)",
@@ -453,7 +465,8 @@ def validate(*, quick=False, scenes=SCENES, media=None, dx=None, omega=1.1, prog
     if "rig" in scenes:
         for m in media:
             say(f"plate rig, {m}")
-            r = plate_rig(material(m, at=max(dx, 4e-3)), quick=quick, dx=max(dx, 4e-3))
+            r = plate_rig(material(m, at=max(dx, 4e-3)), quick=quick, dx=max(dx, 4e-3),
+                          config=config(max(dx, 4e-3)))
             for comp in ("z", "x"):
                 checks.append(Check("rig", f"RMS(alpha_{comp} - Table S5) / max|alpha_z|, {m}",
                                     r[f"rms_{comp}_frac"], None,
@@ -469,7 +482,7 @@ def validate(*, quick=False, scenes=SCENES, media=None, dx=None, omega=1.1, prog
             for leg in (("flat",) if quick else LEGS):
                 say(f"{leg} leg, {m}")
                 r = leg_vs_measured(leg, material(m), omega=omega, dx=dx,
-                                    config=None if bed_pad is None else SPHConfig(dx=dx, bed_pad=bed_pad),
+                                    config=config(dx, bed_pad),
                                     realizations=realizations, store=store)
                 if r["stored"]:
                     say(f"{leg} leg, {m}: {r['stored']} of {r['realizations']} runs read from {store}")
@@ -495,7 +508,8 @@ def validate(*, quick=False, scenes=SCENES, media=None, dx=None, omega=1.1, prog
                          "leg_realizations": int(realizations),
                          "media": media, "dp_match": sorted({material(m).dp_match for m in media}),
                          "rheology": rheology, "calibration_bed": calibration_bed,
-                         **({} if bed_pad is None else {"bed_pad_m": bed_pad})}}
+                         **({} if bed_pad is None else {"bed_pad_m": bed_pad}),
+                         **({} if leg_friction is None else {"leg_friction_rad": leg_friction})}}
 
 
 def summary(result: dict) -> dict:
