@@ -21,7 +21,13 @@ resumes. A study, not a timing benchmark (the wall time of each point is recorde
 instead runs those legs in the rotating-leg test as the validation does (2.5 mm, omega
 1.1 rad/s, 6 cm bed, one run; each finished run kept in .sph-runs) with each grain-leg
 friction angle, scored against Li 2013 Fig. S5 (benchmarks/results/sph_leg_friction_legs.json;
-the rough leg's single runs are in sph_legs_single_runs.json)."""
+the rough leg's single runs are in sph_legs_single_runs.json).
+
+    python benchmarks/sph_leg_friction.py --plate "poppy LP" [--leg-angles 0 20]
+
+runs the plate test (pushed straight down, the calibration's scene, 2.5 mm, two runs) rough
+and with each grain-leg friction angle (benchmarks/results/sph_leg_friction_plate.json): the
+plate-calibrated friction angle depends on the plate's surface friction."""
 from __future__ import annotations
 
 import argparse
@@ -46,10 +52,13 @@ def main() -> None:
     ap.add_argument("--figure", type=Path)
     ap.add_argument("--legs", nargs="+", help='"MEDIUM:LEG" pairs: run the leg test instead')
     ap.add_argument("--leg-angles", nargs="+", type=float, default=[0.0, 20.0])
+    ap.add_argument("--plate", nargs="+", help="media: run the plate test instead")
     a = ap.parse_args()
     os.environ["NUMBA_NUM_THREADS"] = str(a.threads)  # before numba is imported
     if a.legs:
         return legs(a)
+    if a.plate:
+        return plates(a)
 
     import numpy as np
 
@@ -178,6 +187,34 @@ def legs(a) -> None:
             atomic_write_text(out_file, json.dumps({"command": "python benchmarks/sph_leg_friction.py --legs ...",
                                                     "runs": rows}, indent=1))
             print(row, flush=True)
+
+
+def plates(a) -> None:
+    """The plate test, rough and with each grain-leg friction angle (module docstring)."""
+    from terradyn.io import atomic_write_text
+    from terradyn.sph.calibration import plate_slope
+    from terradyn.sph.materials import from_medium
+    from terradyn.sph.state import SPHConfig
+    from terradyn.units import DEG, N_PER_CM3
+
+    out_file = RES / "sph_leg_friction_plate.json"
+    old = json.loads(out_file.read_text()) if out_file.exists() else {"runs": []}
+    rows = list(old["runs"])
+    for medium in a.plate:
+        mat = from_medium(medium)
+        for ang in [None] + list(a.leg_angles):
+            if any(r["medium"] == medium and r["leg_friction_deg"] == ang for r in rows):
+                continue
+            t0 = time.perf_counter()
+            r = plate_slope(mat, dx=2.5e-3, realizations=2,
+                            config=SPHConfig(dx=2.5e-3, leg_friction=None if ang is None else ang * DEG))
+            rows.append({"medium": medium, "friction_deg": round(mat.friction / DEG, 3),
+                         "leg_friction_deg": ang, "dx_mm": 2.5, "realizations": 2,
+                         "alpha_z_N_per_cm3": r["alpha_z"] / N_PER_CM3,
+                         "wall_s": round(time.perf_counter() - t0)})
+            atomic_write_text(out_file, json.dumps({"command": "python benchmarks/sph_leg_friction.py --plate ...",
+                                                    "runs": rows}, indent=1))
+            print(rows[-1], flush=True)
 
 
 if __name__ == "__main__":
