@@ -162,3 +162,36 @@ def test_validate_passes_leg_friction_to_the_plate_rig_and_legs(monkeypatch):
         assert all(v == lf for _, v in seen)
     with pytest.raises(InputError, match="leg-friction"):
         suite.validate(quick=True, scenes=("plate",), media=["poppy LP"], leg_friction=-1.0)
+
+
+def test_calibrate_takes_the_plate_friction_and_the_merge_refuses_it(monkeypatch, capsys, tmp_path):
+    """``sph calibrate --leg-friction-deg`` runs its plate tests with that plate friction
+    (checked before any work; recorded in the output), and such a calibration is never
+    merged into the shipped file, whose media run with the rough leg."""
+    import json
+
+    from terradyn.sph import calibration
+
+    assert main(["sph", "calibrate", "--medium", "poppy LP", "--leg-friction-deg", "61"]) == 2
+    _one_line_error(capsys, "leg-friction-deg", "[0, 60] deg")
+    seen = []
+
+    def spy(mat, target, *, dx, config=None, **kw):
+        seen.append(None if config is None else config.leg_friction)
+        raise StopIteration
+
+    monkeypatch.setattr(calibration, "calibrate_friction", spy)
+    import terradyn.cli.sph_validate as cmd
+
+    with pytest.raises(StopIteration):
+        cmd.calibrate_cmd(medium=["poppy LP"], density_kg_m3=None, alpha_z_n_cm3=None,
+                          name="custom", friction_start_deg=None, dx_mm=2.5, youngs_mpa=0.25,
+                          tol=0.03, realizations=1, max_evals=2, plate_bed_pad_cm=None,
+                          leg_friction_deg=20.0, out=tmp_path / "c.json")
+    assert seen == [pytest.approx(20 * DEG)]
+    base = calibration.shipped()
+    rec = dict(base["poppy LP"], converged=True)
+    new = {"_meta": {"plate_test": dict(calibration.PLATE_TEST, leg_friction_deg=20.0)},
+           "poppy LP": rec}
+    with pytest.raises(InputError, match="leg_friction_deg"):
+        calibration.merge_resolutions(base, json.loads(json.dumps(new)))

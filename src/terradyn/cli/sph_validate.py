@@ -27,6 +27,7 @@ def calibrate_cmd(
     realizations: int = typer.Option(2, help="Plate runs averaged per friction angle (single runs scatter by about 10 %)."),
     max_evals: int = typer.Option(6, help="Most friction angles tried per medium."),
     plate_bed_pad_cm: Optional[float] = typer.Option(None, "--plate-bed-pad-cm", show_default="the calibration bed, 9.5 cm beside and 7.6 cm below", help="Granular bed beyond the plate's edges and below its deepest point, cm, in [1, 50] (docs/sph.md 'Bed size')."),
+    leg_friction_deg: Optional[float] = typer.Option(None, "--leg-friction-deg", help="Grain-plate friction angle of the plate, deg, in [0, 60]: calibrate for a plate (and legs) of that measured friction (default: none, a rough no-slip plate, as the shipped calibrations; below about 20 deg the plate bears less: docs/sph.md 'Grain-leg friction')."),
     out: Optional[Path] = typer.Option(None, "--out", "-o", help="Write the calibration JSON here (default: stdout)."),
 ):
     """Calibrate the SPH friction angle of a medium on its plate test (Li 2013 Table S3).
@@ -55,7 +56,10 @@ def calibrate_cmd(
     youngs = in_range("youngs-mpa", youngs_mpa, 0.05, 100.0, "MPa") * 1e6
     integer("max-evals", max_evals, 2)
     bed_pad = None if plate_bed_pad_cm is None else bed_pad_m("plate-bed-pad-cm", plate_bed_pad_cm)
-    config = None if bed_pad is None else SPHConfig(dx=dx, bed_pad=bed_pad)
+    leg_friction = (None if leg_friction_deg is None
+                    else in_range("leg-friction-deg", leg_friction_deg, 0.0, 60.0, "deg") * DEG)
+    config = (None if bed_pad is None and leg_friction is None
+              else SPHConfig(dx=dx, bed_pad=bed_pad, leg_friction=leg_friction))
     if out is not None:
         from ..io import check_output
 
@@ -84,7 +88,8 @@ def calibrate_cmd(
                 start = from_medium(m).friction / DEG
             jobs.append((from_medium(m, friction_deg=start, youngs=youngs), MEDIA[m].alpha_z_plate))
     result = {"_meta": {"what": "SPH friction angles calibrated on the plate test (terradyn sph calibrate)",
-                        "plate_test": PLATE_TEST | ({} if bed_pad is None else {"bed_pad_m": bed_pad}),
+                        "plate_test": PLATE_TEST | ({} if bed_pad is None else {"bed_pad_m": bed_pad})
+                        | ({} if leg_friction is None else {"leg_friction_deg": leg_friction_deg}),
                         "dx_m": dx, "realizations": realizations,
                         "terradyn_version": __version__,
                         "created": datetime.datetime.now(datetime.timezone.utc).isoformat(timespec="seconds"),

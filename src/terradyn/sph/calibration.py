@@ -290,6 +290,12 @@ def merge_resolutions(base: dict, new: dict) -> dict:
     out = json.loads(json.dumps(base))
     meta = new.get("_meta", {})
     pad = (meta.get("plate_test") or {}).get("bed_pad_m")
+    if (meta.get("plate_test") or {}).get("leg_friction_deg") is not None:
+        # the shipped media run with the rough leg: a calibration for a plate of another
+        # friction is the user's, for runs with that friction, not a shipped record
+        raise InputError("leg_friction_deg", "a calibration made with --leg-friction-deg is for runs "
+                                             "with that plate friction; the shipped calibrations are "
+                                             "for the rough (no-slip) plate and legs")
     for m, rec in new.items():
         if m == "_meta":
             continue
