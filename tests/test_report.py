@@ -38,6 +38,19 @@ def test_judge_reads_the_tolerance_and_the_numbers():
     assert card_verdict([None, None]) == "no published number"
 
 
+def test_every_shipped_sph_result_file_loads(tmp_path):
+    """Every file the report reads as an SPH validation result is one (a study's JSON under a
+    validation's name once broke the report); anything else is refused by name."""
+    files = P.sph_result_files()
+    assert files, "no shipped SPH result files found"
+    results = P.load_sph_results(files)
+    assert all(r["checks"] and all({"scene", "quantity", "ours"} <= set(c) for c in r["checks"]) for r in results)
+    stray = tmp_path / "sph_validate_study.json"
+    stray.write_text(json.dumps({"what": "a study", "legs": {}}))
+    with pytest.raises(ValueError, match="sph_validate_study.json: not an SPH validation result"):
+        P.load_sph_results([stray])
+
+
 def test_every_claim_has_a_verdict_computed_from_its_numbers(quick_report):
     out, rep = quick_report
     disk = json.loads((out / "report.json").read_text())

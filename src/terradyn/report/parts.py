@@ -485,13 +485,17 @@ def load_sph_results(files) -> list[dict]:
         d = json.loads(Path(p).read_text())
         if "checks" in d:
             rows = [c for c in d["checks"]]
-        else:
+        elif Path(p).name.startswith("sph_rig_") and all(f"rms_{c}_frac" in d for c in ("z", "x")):
             med = Path(p).stem.removeprefix("sph_rig_").replace("_", " ")
             rows = [{"scene": "rig", "quantity": f"RMS(alpha_{c} - Table S5) / max|alpha_z|, {med}",
                      "ours": d[f"rms_{c}_frac"], "reference": None, "unit": "",
                      "source": f"{LI2013}, Table S5 ({'3 x 5 subset' if d.get('settings', {}).get('quick') else 'grid'})",
                      "tolerance": "<= 0.20"} for c in ("z", "x")]
             rows[0]["_rig"] = d
+        else:
+            raise ValueError(f"{Path(p).name}: not an SPH validation result (no 'checks') nor a rig study "
+                             "(sph_rig_*.json with rms_z_frac and rms_x_frac); the report reads "
+                             "benchmarks/results/sph_validate_*.json and sph_rig_*.json")
         out.append({"file": Path(p).name, "checks": rows, "settings": d.get("settings", {})})
     return out
 
