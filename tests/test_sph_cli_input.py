@@ -278,10 +278,12 @@ def test_bed_pad_checked_before_the_run(value, no_work, capsys):
     _one_line_error(capsys, "bed-pad-cm", "cm")
 
 
-def test_validate_checks_bed_pad_before_making_the_folder(capsys, tmp_path):
+@pytest.mark.parametrize("option, value, part", [("--bed-pad-cm", "0", "[1, 50] cm"),
+                                                  ("--leg-friction-deg", "75", "[0, 60] deg")])
+def test_validate_checks_its_options_before_making_the_folder(option, value, part, capsys, tmp_path):
     out = tmp_path / "v"
-    assert main(["sph", "validate", "--quick", "--out", str(out), "--bed-pad-cm", "0"]) == 2
-    _one_line_error(capsys, "bed-pad-cm", "[1, 50] cm")
+    assert main(["sph", "validate", "--quick", "--out", str(out), option, value]) == 2
+    _one_line_error(capsys, option.removeprefix("--"), part)
     assert not out.exists()
 
 

@@ -124,13 +124,6 @@ def test_rig_plate_sliding_along_itself_feels_its_friction():
     assert sixty == pytest.approx(rough, rel=0.1)
 
 
-def test_validate_checks_leg_friction_before_making_the_folder(capsys, tmp_path):
-    out = tmp_path / "v"
-    assert main(["sph", "validate", "--quick", "--out", str(out), "--leg-friction-deg", "75"]) == 2
-    _one_line_error(capsys, "leg-friction-deg", "[0, 60] deg")
-    assert not out.exists()
-
-
 def test_validate_passes_leg_friction_to_the_plate_rig_and_legs(monkeypatch):
     """Every scene with a leg or plate runs with the grain-leg friction asked for (and with
     the default configuration when it is not)."""
