@@ -14,7 +14,7 @@ one rig point where it matters most.
 
 Writes benchmarks/results/sph_leg_friction.json when every point is done; each finished
 point is kept in benchmarks/results/sph_leg_friction.partial.json, so an interrupted study
-resumes. A study, not a timing benchmark (the wall time of each point is recorded).
+resumes (``--out FILE``: another result file, its partial file beside it). A study, not a timing benchmark (the wall time of each point is recorded).
 
     python benchmarks/sph_leg_friction.py --legs "poppy LP:flat" ... [--leg-angles 0 20]
 
@@ -47,9 +47,15 @@ def main() -> None:
     ap.add_argument("--angles", nargs="+", type=float, default=[0.0, 10.0, 20.0, 30.0],
                     help="grain-leg friction angles, deg (the rough leg is always run)")
     ap.add_argument("--realizations", type=int, default=2)
+    ap.add_argument("--offsets-um", nargs="+", type=float,
+                    help="instead of --realizations: one run per start offset of the plate "
+                         "(um, upward; a fraction of a particle spacing samples the flow, "
+                         "10 nm does not at this point)")
     ap.add_argument("--dx-mm", type=float, default=4.0)
     ap.add_argument("--threads", type=int, default=1)
     ap.add_argument("--figure", type=Path)
+    ap.add_argument("--out", type=Path, default=RES / "sph_leg_friction.json",
+                    help="the rig study's result file (its partial file beside it)")
     ap.add_argument("--legs", nargs="+", help='"MEDIUM:LEG" pairs: run the leg test instead')
     ap.add_argument("--leg-angles", nargs="+", type=float, default=[0.0, 20.0])
     ap.add_argument("--plate", nargs="+", help="media: run the plate test instead")
@@ -72,11 +78,15 @@ def main() -> None:
     dx = a.dx_mm * 1e-3
     settings = {"dx_mm": a.dx_mm, "media": a.media, "angles_deg": a.angles,
                 "realizations": a.realizations, "threads": a.threads,
+                **({"offsets_um": a.offsets_um} if a.offsets_um else {}),
                 "command": "python benchmarks/sph_leg_friction.py --media "
                            + " ".join(f'"{m}"' for m in a.media) + " --angles "
                            + " ".join(f"{x:g}" for x in a.angles)
-                           + f" --realizations {a.realizations} --dx-mm {a.dx_mm:g}"}
-    final, partial = RES / "sph_leg_friction.json", RES / "sph_leg_friction.partial.json"
+                           + (" --offsets-um " + " ".join(f"{x:g}" for x in a.offsets_um) if a.offsets_um
+                              else f" --realizations {a.realizations}") + f" --dx-mm {a.dx_mm:g}"
+                           + ("" if a.out == RES / "sph_leg_friction.json" else f" --out {a.out}")}
+    final = a.out
+    partial = final.with_name(final.stem + ".partial.json")
     done = {}
     for f in (final, partial):  # a finished study only redraws; an unfinished one resumes
         old = json.loads(f.read_text()) if f.exists() else {}
@@ -94,8 +104,11 @@ def main() -> None:
                "cases": []}
         for ang in cases:
             runs = []
-            for r in range(a.realizations):
-                key = f"{m}|{'rough' if ang is None else f'{ang:g}'}|{r}"
+            # rig_point's realization k starts the plate k x 10 nm higher
+            starts = ([(f"off{x:g}um", round(100 * x)) for x in a.offsets_um] if a.offsets_um
+                      else [(str(r), r) for r in range(a.realizations)])
+            for tag, r in starts:
+                key = f"{m}|{'rough' if ang is None else f'{ang:g}'}|{tag}"
                 if key not in done:
                     cfg = SPHConfig(dx=dx, leg_friction=None if ang is None else ang * DEG)
                     t0 = time.perf_counter()
@@ -111,7 +124,7 @@ def main() -> None:
             mu = None if ang is None else math.tan(ang * DEG)
             row["cases"].append({
                 "leg_friction_deg": ang, "alpha_x": float(np.mean(axs)),
-                "alpha_x_runs": axs, "alpha_z": float(np.mean(azs)), "alpha_z_runs": azs,
+                "alpha_x_runs": axs, "alpha_x_std": float(np.std(axs, ddof=1)) if len(axs) > 1 else None, "alpha_z": float(np.mean(azs)), "alpha_z_runs": azs,
                 "alpha_x_over_measured": float(np.mean(axs)) / row["alpha_x_measured"],
                 # both faces at the geostatic stress of the plate's centre depth
                 "faces_geostatic_N_per_cm3": (None if mu is None
@@ -136,17 +149,21 @@ def main() -> None:
         for k, row in enumerate(rows):
             col = f"C{k}"
             cs = [c for c in row["cases"] if c["leg_friction_deg"] is not None]
-            ax.plot([c["leg_friction_deg"] for c in cs], [c["alpha_x"] for c in cs], "o-",
-                    color=col, label=f"{row['medium']} (phi = {row['friction_deg']:.1f} deg)")
-            rough = row["cases"][0]["alpha_x"]
-            ax.plot([max(a.angles) + 8], [rough], "s", color=col, mfc="none")
+            bars = a.offsets_um is not None  # the runs sample the flow: show their spread
+            ax.errorbar([c["leg_friction_deg"] for c in cs], [c["alpha_x"] for c in cs],
+                        yerr=[c["alpha_x_std"] for c in cs] if bars else None, fmt="o-", capsize=3,
+                        color=col, label=f"{row['medium']} (phi = {row['friction_deg']:.1f} deg)")
+            r0 = row["cases"][0]
+            ax.errorbar([max(a.angles) + 8], [r0["alpha_x"]], yerr=[r0["alpha_x_std"]] if bars else None,
+                        fmt="s", color=col, mfc="none", capsize=3)
             ax.axhline(row["alpha_x_measured"], color=col, ls=":", lw=1)
         ax.set_xticks(list(a.angles) + [max(a.angles) + 8])
         ax.set_xticklabels([f"{x:g}" for x in a.angles] + ["rough"])
         ax.set_xlabel("grain-leg friction angle (deg)")
         ax.set_ylabel(r"$\alpha_x(\beta=0, \gamma=0)$ (N/cm$^3$)")
-        ax.set_title("Rig plate dragged along itself, 3 cm deep (SPH, "
-                     f"{a.dx_mm:g} mm, mean of {a.realizations});\n"
+        runs = (f"mean and std of {len(a.offsets_um)} start offsets" if a.offsets_um
+                else f"mean of {a.realizations}")
+        ax.set_title(f"Rig plate dragged along itself, 3 cm deep (SPH, {a.dx_mm:g} mm, {runs});\n"
                      "open squares: rough (no-slip) leg; dotted: measured (Li 2013 Table S5)",
                      fontsize=8)
         ax.legend(fontsize=7, loc="upper left")

@@ -10,8 +10,9 @@ Fig. S5 with :func:`terradyn.sph.suite.leg_scores`, RFT's RMS beside them.
 
 e.g. ``"poppy LP=/work/runs/validate_large_poppyLP/runs"``. Writes OUT.json (per leg and
 medium: the number of runs read, each run's peaks, the mean curve's peaks against the
-measured ones, and the RMS errors) and prints one line per leg. The stored runs' keys are
-not checked against the current code: record the commit the runs were made with in --what.
+measured ones, and the RMS errors) and prints one line per leg. Only the runs stored by the
+code of the newest run in a folder are scored (a resumed validation reruns what older code
+stored); record the commit the runs were made with in --what.
 A scoring script, not a timing benchmark."""
 from __future__ import annotations
 
@@ -27,10 +28,17 @@ from terradyn.sph.suite import leg_scores
 
 
 def score_store(medium: str, folder: Path) -> dict:
+    files = sorted(Path(folder).glob("leg-*.nc"), key=lambda f: f.stat().st_mtime)
+    loaded = [(f, xr.load_dataset(f, engine="h5netcdf")) for f in files]
+    # a resumed validation reruns what other code stored (its key holds the code): score only
+    # the runs of the code of the newest run, and say which were left out
+    newest = json.loads(loaded[-1][1].attrs["terradyn_run_spec"])["code"] if loaded else None
     runs: dict[str, list] = {}
-    for f in sorted(Path(folder).glob("leg-*.nc")):
-        ds = xr.load_dataset(f, engine="h5netcdf")
+    for f, ds in loaded:
         spec = json.loads(ds.attrs["terradyn_run_spec"])
+        if spec["code"] != newest:
+            print(f"left out {f.name}: stored by other code than the newest run's")
+            continue
         runs.setdefault(spec["leg"], []).append(ds)
     out = {}
     for leg, rs in sorted(runs.items()):
