@@ -1,0 +1,99 @@
+"""How much do repeated SPH runs scatter, and do the 10 nm "realizations" sample it? (issue 17)
+
+The plate test (``calibration.plate_slope``), the rig and the legs take ``realization`` k:
+the body starts k x 10 nm higher, "a physically nil change that gives another realization
+of the chaotic flow". The calibration's standard error of the friction angle and the
+convergence study's "two runs each" rest on it. This runs the plate test (the calibration's
+scene and settings, :data:`terradyn.sph.calibration.PLATE_TEST`) of a medium at its shipped
+friction angle with realizations 0, 1, 2, ... (10 nm apart) and with sub-particle start
+offsets (50 um to 0.7 mm higher: a fraction of the particle spacing, so the plate meets the
+particle lattice at another phase), and reports each group's mean, standard deviation and
+range of the through-origin alpha_z.
+
+    python benchmarks/sph_start_offsets.py [--media "poppy LP" ...] [--dx-mm 4]
+        [--nm-realizations 3] [--offsets-um 50 100 200 400 700] [--threads 1]
+
+Writes benchmarks/results/sph_start_offsets.json (``--out``) when done; each finished run is
+kept in the ``.partial.json`` beside it, so an interrupted study resumes. A study, not a
+timing benchmark (each run's wall time is recorded)."""
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import sys
+import time
+from pathlib import Path
+
+RES = Path(__file__).parent / "results"
+
+
+def main(argv=None) -> int:
+    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    ap.add_argument("--media", nargs="+", default=["poppy LP", "0.3 mm glass CP"])
+    ap.add_argument("--dx-mm", type=float, default=4.0)
+    ap.add_argument("--nm-realizations", type=int, default=3, help="realizations 0..N-1, 10 nm apart")
+    ap.add_argument("--offsets-um", nargs="+", type=float, default=[50, 100, 200, 400, 700])
+    ap.add_argument("--threads", type=int, default=1)
+    ap.add_argument("--out", type=Path, default=RES / "sph_start_offsets.json")
+    a = ap.parse_args(argv)
+    if a.nm_realizations < 2 or len(a.offsets_um) < 2 or any(x <= 0 for x in a.offsets_um):
+        ap.error("nm-realizations: at least 2; offsets-um: at least 2, each > 0 um")
+    os.environ["NUMBA_NUM_THREADS"] = str(a.threads)  # before numba is imported
+
+    import numpy as np
+
+    from terradyn.io import atomic_write_text
+    from terradyn.media import MEDIA
+    from terradyn.sph.calibration import PLATE_TEST, plate_slope
+    from terradyn.sph.materials import from_medium
+    from terradyn.sph.state import SPHConfig
+    from terradyn.units import DEG, N_PER_CM3
+
+    dx = a.dx_mm * 1e-3
+    settings = {"media": a.media, "dx_mm": a.dx_mm, "nm_realizations": a.nm_realizations,
+                "offsets_um": a.offsets_um, "threads": a.threads, "plate_test": PLATE_TEST}
+    partial = a.out.with_name(a.out.stem + ".partial.json")
+    done = {}
+    if partial.exists():
+        old = json.loads(partial.read_text())
+        if old.get("settings") == settings:
+            done = old["runs"]
+            print(f"reading {partial.name}: {len(done)} runs done", flush=True)
+    rows = []
+    for m in a.media:
+        mat = from_medium(m, dx=dx)
+        groups = {"10 nm": [(f"k{k}", k) for k in range(a.nm_realizations)],
+                  "sub-particle": [(f"{x:g}um", round(100 * x)) for x in a.offsets_um]}
+        row = {"medium": m, "friction_deg": round(mat.friction / DEG, 3),
+               "alpha_z_measured": MEDIA[m].alpha_z_plate / N_PER_CM3, "groups": {}}
+        for g, starts in groups.items():
+            vals = []
+            for tag, k in starts:
+                key = f"{m}|{tag}"
+                if key not in done:
+                    t0 = time.perf_counter()
+                    r = plate_slope(mat, config=SPHConfig(dx=dx), realizations=1, first=k)
+                    done[key] = {"start_offset_um": k / 100, "alpha_z": r["alpha_z"] / N_PER_CM3,
+                                 "wall_s": round(time.perf_counter() - t0, 1)}
+                    atomic_write_text(partial, json.dumps({"settings": settings, "runs": done}, indent=1))
+                    print(key, done[key], flush=True)
+                vals.append(done[key]["alpha_z"])
+            v = np.asarray(vals)
+            row["groups"][g] = {"alpha_z": vals, "mean": float(v.mean()), "std": float(v.std(ddof=1)),
+                                "range_over_mean": float(np.ptp(v) / v.mean())}
+        rows.append(row)
+    atomic_write_text(a.out, json.dumps({"command": "python benchmarks/sph_start_offsets.py "
+                                         + " ".join(argv if argv is not None else sys.argv[1:]),
+                                         "settings": settings, "rows": rows}, indent=1) + "\n")
+    partial.unlink(missing_ok=True)
+    for row in rows:
+        for g, s in row["groups"].items():
+            print(f"{row['medium']:16s} {g:12s} alpha_z {s['mean']:.4f} +- {s['std']:.4f} N/cm^3 "
+                  f"(range {100 * s['range_over_mean']:.1f} % of the mean; runs "
+                  + ", ".join(f"{x:.4f}" for x in s["alpha_z"]) + ")")
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
