@@ -12,6 +12,9 @@ range of the through-origin alpha_z.
 
     python benchmarks/sph_start_offsets.py [--media "poppy LP" ...] [--dx-mm 4]
         [--nm-realizations 3] [--offsets-um 50 100 200 400 700] [--threads 1]
+        [--rig BETA_DEG GAMMA_DEG --out FILE]
+
+``--rig`` runs one point of the virtual plate rig instead (alpha_z and alpha_x).
 
 Writes benchmarks/results/sph_start_offsets.json (``--out``) when done; each finished run is
 kept in the ``.partial.json`` beside it, so an interrupted study resumes. A study, not a
@@ -35,6 +38,9 @@ def main(argv=None) -> int:
     ap.add_argument("--nm-realizations", type=int, default=3, help="realizations 0..N-1, 10 nm apart")
     ap.add_argument("--offsets-um", nargs="+", type=float, default=[50, 100, 200, 400, 700])
     ap.add_argument("--threads", type=int, default=1)
+    ap.add_argument("--rig", nargs=2, type=float, metavar=("BETA_DEG", "GAMMA_DEG"),
+                    help="instead of the plate test: the rig's plate at this attack and intrusion "
+                         "angle (suite.rig_point, Li's conventions; alpha_z and alpha_x)")
     ap.add_argument("--out", type=Path, default=RES / "sph_start_offsets.json")
     a = ap.parse_args(argv)
     if a.nm_realizations < 2 or len(a.offsets_um) < 2 or any(x <= 0 for x in a.offsets_um):
@@ -48,11 +54,21 @@ def main(argv=None) -> int:
     from terradyn.sph.calibration import PLATE_TEST, plate_slope
     from terradyn.sph.materials import from_medium
     from terradyn.sph.state import SPHConfig
+    from terradyn.sph.suite import rig_point
     from terradyn.units import DEG, N_PER_CM3
+
+    def run(mat, k):
+        if a.rig is None:
+            return {"alpha_z": plate_slope(mat, config=SPHConfig(dx=dx), realizations=1, first=k)["alpha_z"]
+                    / N_PER_CM3}
+        az, ax = rig_point(mat, a.rig[0] * DEG, a.rig[1] * DEG, dx=dx, realization=k)
+        return {"alpha_z": az / N_PER_CM3, "alpha_x": ax / N_PER_CM3}
 
     dx = a.dx_mm * 1e-3
     settings = {"media": a.media, "dx_mm": a.dx_mm, "nm_realizations": a.nm_realizations,
-                "offsets_um": a.offsets_um, "threads": a.threads, "plate_test": PLATE_TEST}
+                "offsets_um": a.offsets_um, "threads": a.threads,
+                **({"plate_test": PLATE_TEST} if a.rig is None
+                   else {"rig_beta_deg": a.rig[0], "rig_gamma_deg": a.rig[1]})}
     partial = a.out.with_name(a.out.stem + ".partial.json")
     done = {}
     if partial.exists():
@@ -68,30 +84,32 @@ def main(argv=None) -> int:
         row = {"medium": m, "friction_deg": round(mat.friction / DEG, 3),
                "alpha_z_measured": MEDIA[m].alpha_z_plate / N_PER_CM3, "groups": {}}
         for g, starts in groups.items():
-            vals = []
+            vals = {}
             for tag, k in starts:
                 key = f"{m}|{tag}"
                 if key not in done:
                     t0 = time.perf_counter()
-                    r = plate_slope(mat, config=SPHConfig(dx=dx), realizations=1, first=k)
-                    done[key] = {"start_offset_um": k / 100, "alpha_z": r["alpha_z"] / N_PER_CM3,
+                    done[key] = {"start_offset_um": k / 100, **run(mat, k),
                                  "wall_s": round(time.perf_counter() - t0, 1)}
                     atomic_write_text(partial, json.dumps({"settings": settings, "runs": done}, indent=1))
                     print(key, done[key], flush=True)
-                vals.append(done[key]["alpha_z"])
-            v = np.asarray(vals)
-            row["groups"][g] = {"alpha_z": vals, "mean": float(v.mean()), "std": float(v.std(ddof=1)),
-                                "range_over_mean": float(np.ptp(v) / v.mean())}
+                for q in ("alpha_z", "alpha_x"):
+                    if q in done[key]:
+                        vals.setdefault(q, []).append(done[key][q])
+            row["groups"][g] = {q: {"runs": v, "mean": float(np.mean(v)), "std": float(np.std(v, ddof=1)),
+                                    "range_over_mean": float(np.ptp(v) / abs(np.mean(v)))}
+                                for q, v in vals.items()}
         rows.append(row)
     atomic_write_text(a.out, json.dumps({"command": "python benchmarks/sph_start_offsets.py "
                                          + " ".join(argv if argv is not None else sys.argv[1:]),
                                          "settings": settings, "rows": rows}, indent=1) + "\n")
     partial.unlink(missing_ok=True)
     for row in rows:
-        for g, s in row["groups"].items():
-            print(f"{row['medium']:16s} {g:12s} alpha_z {s['mean']:.4f} +- {s['std']:.4f} N/cm^3 "
-                  f"(range {100 * s['range_over_mean']:.1f} % of the mean; runs "
-                  + ", ".join(f"{x:.4f}" for x in s["alpha_z"]) + ")")
+        for g, qs in row["groups"].items():
+            for q, s in qs.items():
+                print(f"{row['medium']:16s} {g:12s} {q} {s['mean']:.4f} +- {s['std']:.4f} N/cm^3 "
+                      f"(range {100 * s['range_over_mean']:.1f} % of the mean; runs "
+                      + ", ".join(f"{x:.4f}" for x in s["runs"]) + ")")
     return 0
 
 
