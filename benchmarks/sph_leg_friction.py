@@ -14,7 +14,10 @@ one rig point where it matters most.
 
 Writes benchmarks/results/sph_leg_friction.json when every point is done; each finished
 point is kept in benchmarks/results/sph_leg_friction.partial.json, so an interrupted study
-resumes (``--out FILE``: another result file, its partial file beside it). A study, not a timing benchmark (the wall time of each point is recorded).
+resumes (``--out FILE``: another result file, its partial file beside it). ``--offsets-um``
+instead of ``--realizations``: one run per sub-particle start offset of the plate (docs/sph.md,
+"Run-to-run scatter"). A study, not a timing benchmark (the wall time of each point is
+recorded).
 
     python benchmarks/sph_leg_friction.py --legs "poppy LP:flat" ... [--leg-angles 0 20]
 
@@ -46,7 +49,7 @@ def main() -> None:
     ap.add_argument("--media", nargs="+", default=list(MEDIA))
     ap.add_argument("--angles", nargs="+", type=float, default=[0.0, 10.0, 20.0, 30.0],
                     help="grain-leg friction angles, deg (the rough leg is always run)")
-    ap.add_argument("--realizations", type=int, default=2)
+    ap.add_argument("--realizations", type=int, help="runs a point, 10 nm apart (default 2)")
     ap.add_argument("--offsets-um", nargs="+", type=float,
                     help="instead of --realizations: one run per start offset of the plate "
                          "(um, upward; a fraction of a particle spacing samples the flow, "
@@ -60,6 +63,11 @@ def main() -> None:
     ap.add_argument("--leg-angles", nargs="+", type=float, default=[0.0, 20.0])
     ap.add_argument("--plate", nargs="+", help="media: run the plate test instead")
     a = ap.parse_args()
+    if a.offsets_um is not None and a.realizations is not None:
+        ap.error("--offsets-um and --realizations: give one of them (the offsets are the runs)")
+    if a.offsets_um is not None and (len(a.offsets_um) < 2 or any(x < 0 for x in a.offsets_um)):
+        ap.error("--offsets-um: at least two offsets, each >= 0 um")
+    a.realizations = 2 if a.realizations is None else a.realizations
     os.environ["NUMBA_NUM_THREADS"] = str(a.threads)  # before numba is imported
     if a.legs:
         return legs(a)
@@ -124,7 +132,8 @@ def main() -> None:
             mu = None if ang is None else math.tan(ang * DEG)
             row["cases"].append({
                 "leg_friction_deg": ang, "alpha_x": float(np.mean(axs)),
-                "alpha_x_runs": axs, "alpha_x_std": float(np.std(axs, ddof=1)) if len(axs) > 1 else None, "alpha_z": float(np.mean(azs)), "alpha_z_runs": azs,
+                "alpha_x_runs": axs, "alpha_x_std": float(np.std(axs, ddof=1)) if len(axs) > 1 else None,
+                "alpha_z": float(np.mean(azs)), "alpha_z_runs": azs,
                 "alpha_x_over_measured": float(np.mean(axs)) / row["alpha_x_measured"],
                 # both faces at the geostatic stress of the plate's centre depth
                 "faces_geostatic_N_per_cm3": (None if mu is None

@@ -57,6 +57,8 @@ def main(argv=None) -> int:
     from terradyn.sph.suite import rig_point
     from terradyn.units import DEG, N_PER_CM3
 
+    dx = a.dx_mm * 1e-3
+
     def run(mat, k):
         if a.rig is None:
             return {"alpha_z": plate_slope(mat, config=SPHConfig(dx=dx), realizations=1, first=k)["alpha_z"]
@@ -64,7 +66,6 @@ def main(argv=None) -> int:
         az, ax = rig_point(mat, a.rig[0] * DEG, a.rig[1] * DEG, dx=dx, realization=k)
         return {"alpha_z": az / N_PER_CM3, "alpha_x": ax / N_PER_CM3}
 
-    dx = a.dx_mm * 1e-3
     settings = {"media": a.media, "dx_mm": a.dx_mm, "nm_realizations": a.nm_realizations,
                 "offsets_um": a.offsets_um, "threads": a.threads,
                 **({"plate_test": PLATE_TEST} if a.rig is None
