@@ -11,10 +11,13 @@ particle lattice at another phase), and reports each group's mean, standard devi
 range of the through-origin alpha_z.
 
     python benchmarks/sph_start_offsets.py [--media "poppy LP" ...] [--dx-mm 4]
+        [--calibration-dx-mm 2.5]
         [--nm-realizations 3] [--offsets-um 50 100 200 400 700] [--threads 1]
         [--rig BETA_DEG GAMMA_DEG --out FILE]
 
-``--rig`` runs one point of the virtual plate rig instead (alpha_z and alpha_x).
+``--calibration-dx-mm`` takes the friction angle calibrated at that spacing (default: the
+run's own spacing, as :func:`terradyn.sph.materials.from_medium` picks it), so that a
+resolution study holds the material fixed. ``--rig`` runs one point of the virtual plate rig instead (alpha_z and alpha_x).
 
 Writes benchmarks/results/sph_start_offsets.json (``--out``) when done; each finished run is
 kept in the ``.partial.json`` beside it, so an interrupted study resumes. A study, not a
@@ -35,6 +38,8 @@ def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--media", nargs="+", default=["poppy LP", "0.3 mm glass CP"])
     ap.add_argument("--dx-mm", type=float, default=4.0)
+    ap.add_argument("--calibration-dx-mm", type=float, default=None,
+                    help="the friction angle calibrated at this spacing (default: the run's own)")
     ap.add_argument("--nm-realizations", type=int, default=3, help="realizations 0..N-1, 10 nm apart")
     ap.add_argument("--offsets-um", nargs="+", type=float, default=[50, 100, 200, 400, 700])
     ap.add_argument("--threads", type=int, default=1)
@@ -43,6 +48,8 @@ def main(argv=None) -> int:
                          "angle (suite.rig_point, Li's conventions; alpha_z and alpha_x)")
     ap.add_argument("--out", type=Path, default=RES / "sph_start_offsets.json")
     a = ap.parse_args(argv)
+    if a.calibration_dx_mm is not None and not 0.5 <= a.calibration_dx_mm <= 10:
+        ap.error(f"calibration-dx-mm: 0.5 to 10 mm, got {a.calibration_dx_mm:g} mm")
     if a.nm_realizations < 2 or len(a.offsets_um) < 2 or any(x <= 0 for x in a.offsets_um):
         ap.error("nm-realizations: at least 2; offsets-um: at least 2, each > 0 um")
     os.environ["NUMBA_NUM_THREADS"] = str(a.threads)  # before numba is imported
@@ -66,7 +73,10 @@ def main(argv=None) -> int:
         az, ax = rig_point(mat, a.rig[0] * DEG, a.rig[1] * DEG, dx=dx, realization=k)
         return {"alpha_z": az / N_PER_CM3, "alpha_x": ax / N_PER_CM3}
 
-    settings = {"media": a.media, "dx_mm": a.dx_mm, "nm_realizations": a.nm_realizations,
+    cal_dx = dx if a.calibration_dx_mm is None else a.calibration_dx_mm * 1e-3
+    settings = {"media": a.media, "dx_mm": a.dx_mm,
+                **({} if a.calibration_dx_mm is None else {"calibration_dx_mm": a.calibration_dx_mm}),
+                "nm_realizations": a.nm_realizations,
                 "offsets_um": a.offsets_um, "threads": a.threads,
                 **({"plate_test": PLATE_TEST} if a.rig is None
                    else {"rig_beta_deg": a.rig[0], "rig_gamma_deg": a.rig[1]})}
@@ -79,7 +89,7 @@ def main(argv=None) -> int:
             print(f"reading {partial.name}: {len(done)} runs done", flush=True)
     rows = []
     for m in a.media:
-        mat = from_medium(m, dx=dx)
+        mat = from_medium(m, dx=cal_dx)
         groups = {"10 nm": [(f"k{k}", k) for k in range(a.nm_realizations)],
                   "sub-particle": [(f"{x:g}um", round(100 * x)) for x in a.offsets_um]}
         row = {"medium": m, "friction_deg": round(mat.friction / DEG, 3),

@@ -421,6 +421,55 @@ def test_calibrate_cli_plate_bed_pad_reaches_the_search_and_is_checked_first(mon
     assert "plate-bed-pad-cm" in capsys.readouterr().err and not (tmp_path / "e.json").exists()
 
 
+def test_phase_starts_spread_the_plate_runs_over_one_particle_spacing(monkeypatch):
+    # "nm": consecutive 10 nm steps from first; "phase": j dx / N above the standard start
+    assert calibration.start_offsets(3, 2.5e-3, "nm", first=4) == [4, 5, 6]
+    assert calibration.start_offsets(5, 2.5e-3, "phase") == [0, 50000, 100000, 150000, 200000]
+    ks = calibration.start_offsets(4, 1.6e-3, "phase")
+    assert [k * 1e-8 / 1.6e-3 for k in ks] == pytest.approx([0, 0.25, 0.5, 0.75])
+    with pytest.raises(InputError, match="starts"):
+        calibration.start_offsets(2, 2.5e-3, "lattice")
+    with pytest.raises(InputError, match="first"):
+        calibration.start_offsets(2, 2.5e-3, "phase", first=1)
+    # plate_slope hands those starts to the plate test, at the config's spacing
+    from terradyn.sph import validation
+    from terradyn.sph.state import SPHConfig
+    seen = []
+
+    def fake_push(mat, *, realization, config, **kw):
+        seen.append((realization, config.dx))
+        d = np.linspace(0, 0.04, 41)
+        return {"depth": d, "stress": 1e5 * d, "series": None}
+
+    monkeypatch.setattr(validation, "plate_push", fake_push)
+    got = calibration.plate_slope(materials.from_medium("poppy LP"), config=SPHConfig(dx=4e-3),
+                                  realizations=2, starts="phase")
+    assert seen == [(0, 4e-3), (200000, 4e-3)] and got["alpha_z"] == pytest.approx(1e5)
+
+
+def test_calibrate_cli_takes_phase_starts_and_records_them(monkeypatch, tmp_path, capsys):
+    from terradyn.cli import main
+
+    kws = []
+
+    def fake(mat, target, **kw):
+        kws.append(kw)
+        return calibration.Calibration(mat.name, mat.friction / DEG, target / N_PER_CM3, target / N_PER_CM3,
+                                       kw["dx"], converged=True, friction_se_deg=0.0)
+
+    monkeypatch.setattr(calibration, "calibrate_friction", fake)
+    out = tmp_path / "c.json"
+    assert main(["sph", "calibrate", "--medium", "poppy LP", "--starts", "phase", "--realizations", "5",
+                 "-o", str(out)]) == 0
+    assert kws[-1]["starts"] == "phase" and kws[-1]["realizations"] == 5
+    assert json.loads(out.read_text())["_meta"]["starts"] == "phase"
+    for bad, field in ((["--starts", "lattice"], "starts"), (["--starts", "phase", "--realizations", "1"],
+                                                              "realizations")):
+        assert main(["sph", "calibrate", "--medium", "poppy LP", *bad, "-o", str(tmp_path / "e.json")]) == 2
+        assert field in capsys.readouterr().err and not (tmp_path / "e.json").exists()
+    assert len(kws) == 1
+
+
 def test_calibrations_at_other_spacings_merge_under_other_resolutions():
     base = {"_meta": {"dx_m": 2.5e-3}, "poppy LP": {"friction_deg": 35.7, "dx_m": 2.5e-3, "converged": True}}
     new = {"_meta": {"created": "today", "realizations": 2},
