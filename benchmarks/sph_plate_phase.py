@@ -4,7 +4,8 @@
 production (2.5 mm) calibration and start offsets spread over one particle spacing
 (0.2, 0.4, 0.6, 0.8 dx above the standard start, plus the standard start and its 10 nm
 realization) samples where the plate face meets the particle lattice. This script reads
-those runs (``benchmarks/results/sph_start_offsets_phase_TAG_DXmm.json``, or a run's
+those runs (``benchmarks/results/sph_start_offsets_phase_TAG_DXmm[_PART].json``: a spacing's
+runs may be split over several files, PART a letter, run side by side; or a run's
 ``.partial.json`` while it goes on) and reports, per medium and spacing:
 
 * the standard start (the calibration's realization 0) against the mean over the five
@@ -26,11 +27,13 @@ from pathlib import Path
 import numpy as np
 
 RES = Path(__file__).parent / "results"
-NAME = re.compile(r"sph_start_offsets_phase_(?P<tag>.+)_(?P<dx>[0-9.]+)mm(?P<partial>\.partial)?\.json$")
+NAME = re.compile(r"sph_start_offsets_phase_(?P<tag>.+?)_(?P<dx>[0-9.]+)mm(?:_(?P<part>[a-z]))?"
+                  r"(?P<partial>\.partial)?\.json$")
 
 
 def load(results: Path = RES) -> list[dict]:
-    """One row per (medium, spacing): the runs found, finished file first, else the partial."""
+    """One row per (medium, spacing): the runs of every file of it, finished or partial
+    (``final``: all of them finished)."""
     rows = {}
     for f in sorted(results.glob("sph_start_offsets_phase_*.json")):
         m = NAME.match(f.name)
@@ -40,16 +43,15 @@ def load(results: Path = RES) -> list[dict]:
         dx = float(m["dx"])
         runs = d["runs"] if m["partial"] else {
             f"{r['medium']}|{tag}": {"alpha_z": v}
-            for r in d["rows"] for g, q in r["groups"].items()
+            for r in d["rows"] for g, q in r["groups"].items() if "alpha_z" in q
             for tag, v in zip(_tags(d["settings"], g), q["alpha_z"]["runs"])}
         for key, run in runs.items():
             medium, tag = key.split("|")
-            k = (medium, dx)
-            if k in rows and rows[k]["final"] and m["partial"]:
-                continue
-            rows.setdefault(k, {"medium": medium, "dx_mm": dx, "final": not m["partial"],
-                                "calibration_dx_mm": d["settings"].get("calibration_dx_mm"),
-                                "runs": {}})["runs"][tag] = run["alpha_z"]
+            row = rows.setdefault((medium, dx), {"medium": medium, "dx_mm": dx, "final": True,
+                                                 "calibration_dx_mm": d["settings"].get("calibration_dx_mm"),
+                                                 "runs": {}})
+            row["final"] &= not m["partial"]
+            row["runs"][tag] = run["alpha_z"]
     return [_summary(r) for r in sorted(rows.values(), key=lambda r: (r["medium"], -r["dx_mm"]))]
 
 

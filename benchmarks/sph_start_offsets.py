@@ -11,13 +11,14 @@ particle lattice at another phase), and reports each group's mean, standard devi
 range of the through-origin alpha_z.
 
     python benchmarks/sph_start_offsets.py [--media "poppy LP" ...] [--dx-mm 4]
-        [--calibration-dx-mm 2.5]
-        [--nm-realizations 3] [--offsets-um 50 100 200 400 700] [--threads 1]
+        [--calibration-dx-mm 2.5 | --friction-deg PHI]
+        [--nm-realizations 3 (0 or more)] [--offsets-um 50 100 200 400 700] [--threads 1]
         [--rig BETA_DEG GAMMA_DEG --out FILE]
 
 ``--calibration-dx-mm`` takes the friction angle calibrated at that spacing (default: the
 run's own spacing, as :func:`terradyn.sph.materials.from_medium` picks it), so that a
-resolution study holds the material fixed. ``--rig`` runs one point of the virtual plate rig instead (alpha_z and alpha_x).
+resolution study holds the material fixed; ``--friction-deg`` sets the friction angle itself
+(one calibration step over lattice phases). ``--rig`` runs one point of the virtual plate rig instead (alpha_z and alpha_x).
 
 Writes benchmarks/results/sph_start_offsets.json (``--out``) when done; each finished run is
 kept in the ``.partial.json`` beside it, so an interrupted study resumes. A study, not a
@@ -40,6 +41,8 @@ def main(argv=None) -> int:
     ap.add_argument("--dx-mm", type=float, default=4.0)
     ap.add_argument("--calibration-dx-mm", type=float, default=None,
                     help="the friction angle calibrated at this spacing (default: the run's own)")
+    ap.add_argument("--friction-deg", type=float, default=None,
+                    help="this friction angle instead of a calibrated one, deg")
     ap.add_argument("--nm-realizations", type=int, default=3, help="realizations 0..N-1, 10 nm apart")
     ap.add_argument("--offsets-um", nargs="+", type=float, default=[50, 100, 200, 400, 700])
     ap.add_argument("--threads", type=int, default=1)
@@ -50,8 +53,11 @@ def main(argv=None) -> int:
     a = ap.parse_args(argv)
     if a.calibration_dx_mm is not None and not 0.5 <= a.calibration_dx_mm <= 10:
         ap.error(f"calibration-dx-mm: 0.5 to 10 mm, got {a.calibration_dx_mm:g} mm")
-    if a.nm_realizations < 2 or len(a.offsets_um) < 2 or any(x <= 0 for x in a.offsets_um):
-        ap.error("nm-realizations: at least 2; offsets-um: at least 2, each > 0 um")
+    if a.friction_deg is not None and (a.calibration_dx_mm is not None or not 10 <= a.friction_deg <= 60):
+        ap.error("friction-deg: 10 to 60 deg, and not together with --calibration-dx-mm")
+    if a.nm_realizations < 0 or a.nm_realizations + len(a.offsets_um) < 1 or any(x <= 0 for x in a.offsets_um):
+        ap.error("nm-realizations: 0 or more; offsets-um: each > 0 um; at least one run in all "
+                 "(a group of one run has no standard deviation)")
     os.environ["NUMBA_NUM_THREADS"] = str(a.threads)  # before numba is imported
 
     import numpy as np
@@ -76,6 +82,7 @@ def main(argv=None) -> int:
     cal_dx = dx if a.calibration_dx_mm is None else a.calibration_dx_mm * 1e-3
     settings = {"media": a.media, "dx_mm": a.dx_mm,
                 **({} if a.calibration_dx_mm is None else {"calibration_dx_mm": a.calibration_dx_mm}),
+                **({} if a.friction_deg is None else {"friction_deg": a.friction_deg}),
                 "nm_realizations": a.nm_realizations,
                 "offsets_um": a.offsets_um, "threads": a.threads,
                 **({"plate_test": PLATE_TEST} if a.rig is None
@@ -89,7 +96,7 @@ def main(argv=None) -> int:
             print(f"reading {partial.name}: {len(done)} runs done", flush=True)
     rows = []
     for m in a.media:
-        mat = from_medium(m, dx=cal_dx)
+        mat = from_medium(m, dx=cal_dx, friction_deg=a.friction_deg)
         groups = {"10 nm": [(f"k{k}", k) for k in range(a.nm_realizations)],
                   "sub-particle": [(f"{x:g}um", round(100 * x)) for x in a.offsets_um]}
         row = {"medium": m, "friction_deg": round(mat.friction / DEG, 3),
@@ -107,7 +114,8 @@ def main(argv=None) -> int:
                 for q in ("alpha_z", "alpha_x"):
                     if q in done[key]:
                         vals.setdefault(q, []).append(done[key][q])
-            row["groups"][g] = {q: {"runs": v, "mean": float(np.mean(v)), "std": float(np.std(v, ddof=1)),
+            row["groups"][g] = {q: {"runs": v, "mean": float(np.mean(v)),
+                                    "std": float(np.std(v, ddof=1)) if len(v) > 1 else None,
                                     "range_over_mean": float(np.ptp(v) / abs(np.mean(v)))}
                                 for q, v in vals.items()}
         rows.append(row)
@@ -118,7 +126,8 @@ def main(argv=None) -> int:
     for row in rows:
         for g, qs in row["groups"].items():
             for q, s in qs.items():
-                print(f"{row['medium']:16s} {g:12s} {q} {s['mean']:.4f} +- {s['std']:.4f} N/cm^3 "
+                sd = "" if s["std"] is None else f" +- {s['std']:.4f}"
+                print(f"{row['medium']:16s} {g:12s} {q} {s['mean']:.4f}{sd} N/cm^3 "
                       f"(range {100 * s['range_over_mean']:.1f} % of the mean; runs "
                       + ", ".join(f"{x:.4f}" for x in s["runs"]) + ")")
     return 0
