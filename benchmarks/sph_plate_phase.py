@@ -6,7 +6,8 @@ production (2.5 mm) calibration and start offsets spread over one particle spaci
 realization) samples where the plate face meets the particle lattice. This script reads
 those runs (``benchmarks/results/sph_start_offsets_phase_TAG_DXmm[_PART].json``: a spacing's
 runs may be split over several files, PART a letter, run side by side; or a run's
-``.partial.json`` while it goes on) and reports, per medium and spacing:
+``.partial.json`` while it goes on, kept as ``.stopped.json`` when the run was stopped
+before its last start) and reports, per medium and spacing:
 
 * the standard start (the calibration's realization 0) against the mean over the five
   lattice phases (0, 0.2, ..., 0.8 dx): the bias of the standard start;
@@ -28,7 +29,7 @@ import numpy as np
 
 RES = Path(__file__).parent / "results"
 NAME = re.compile(r"sph_start_offsets_phase_(?P<tag>.+?)_(?P<dx>[0-9.]+)mm(?:_(?P<part>[a-z]))?"
-                  r"(?P<partial>\.partial)?\.json$")
+                  r"(?P<partial>\.partial|\.stopped)?\.json$")
 
 
 def load(results: Path = RES) -> list[dict]:
@@ -103,7 +104,8 @@ def figure(rows: list[dict], path: Path, measured: dict) -> None:
 
     from terradyn.io import atomic_save
     media = list(dict.fromkeys(r["medium"] for r in rows))
-    fig, axes = plt.subplots(1, len(media), figsize=(5.2 * len(media), 4.2), squeeze=False)
+    fig, axes = plt.subplots(1, len(media), figsize=(5.2 * len(media), 4.2), squeeze=False,
+                             sharex=True)
     for ax, medium in zip(axes[0], media):
         rs = [r for r in rows if r["medium"] == medium]
         for r in rs:
@@ -113,7 +115,7 @@ def figure(rows: list[dict], path: Path, measured: dict) -> None:
         m = [r for r in rs if "phase_mean" in r]
         ax.errorbar([r["dx_mm"] for r in m], [r["phase_mean"] for r in m],
                     yerr=[r["phase_se"] for r in m], fmt="s-", color="C0", capsize=3,
-                    label="mean over five lattice phases (+- s.e.)")
+                    label="mean over the lattice phases run (+- s.e.)")
         s = [r for r in rs if "standard_start" in r]
         ax.plot([r["dx_mm"] for r in s], [r["standard_start"] for r in s], "^--", color="C3",
                 label="standard start (calibration's run 0)")
@@ -121,8 +123,9 @@ def figure(rows: list[dict], path: Path, measured: dict) -> None:
         ax.set_xlabel("particle spacing dx (mm)")
         ax.set_ylabel(r"plate $\alpha_z(0, \pi/2)$ through the origin (N/cm$^3$)")
         ax.set_title(f"{medium}, friction fixed at the 2.5 mm calibration", fontsize=10)
-        ax.invert_xaxis()
         ax.legend(fontsize=8)
+    spacings = [r["dx_mm"] for r in rows]
+    axes[0][0].set_xlim(max(spacings) + 0.15, min(spacings) - 0.15)  # finer to the right
     fig.tight_layout()
     atomic_save(path, lambda t: fig.savefig(t, dpi=200))
     plt.close(fig)
