@@ -431,6 +431,8 @@ def test_phase_starts_spread_the_plate_runs_over_one_particle_spacing(monkeypatc
         calibration.start_offsets(2, 2.5e-3, "lattice")
     with pytest.raises(InputError, match="first"):
         calibration.start_offsets(2, 2.5e-3, "phase", first=1)
+    with pytest.raises(InputError, match="realizations"):
+        calibration.start_offsets(1, 2.5e-3, "phase")
     # plate_slope hands those starts to the plate test, at the config's spacing
     from terradyn.sph import validation
     from terradyn.sph.state import SPHConfig

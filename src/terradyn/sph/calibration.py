@@ -55,7 +55,7 @@ def start_offsets(realizations: int, dx: float, starts: str = "nm", first: int =
     """The ``realization`` numbers (10 nm steps above the standard start) of the runs of a
     plate test averaged over ``realizations`` runs: ``first``, ``first`` + 1, ... for "nm";
     round(j dx / N / 10 nm) for j = 0 .. N - 1 for "phase" (N = ``realizations``, spacing
-    ``dx`` in m), where ``first`` must be 0."""
+    ``dx`` in m), where ``first`` must be 0 and N at least 2."""
     from ..errors import choice, integer
 
     choice("starts", starts, list(STARTS))
@@ -65,6 +65,8 @@ def start_offsets(realizations: int, dx: float, starts: str = "nm", first: int =
     if first:
         raise InputError("first", "phase starts are fixed fractions of the particle spacing; "
                                   "first must be 0")
+    if n < 2:
+        raise InputError("realizations", "phase starts need at least 2 runs (the phases), got 1")
     return [round(j * dx / n / 1e-8) for j in range(n)]
 
 
@@ -77,8 +79,8 @@ def plate_slope(mat, *, dx: float = 4e-3, config=None, realizations: int = 1, fi
     ``config.bed_pad`` sets the bed as in plate_push (None: the calibration's bed), and
     ``below`` (m) the bed below the plate on its own, as there. ``starts`` (:data:`STARTS`):
     "nm", the runs 10 nm apart from ``first``; "phase", spread over one particle spacing
-    (:func:`start_offsets`). At 2.5 mm the standard start of 0.3 mm glass CP reads about 3 %
-    above the mean over five lattice phases (docs/sph.md "Run-to-run scatter").
+    (:func:`start_offsets`). At 2.5 mm the calibration's two runs from the standard start of
+    0.3 mm glass CP read about 4 % above the mean over five lattice phases (docs/sph.md "Run-to-run scatter").
 
     Returns ``alpha_z`` (N/m^3): the RFT-consistent coefficient, the least-squares fit of
     sigma = alpha |z| through the origin over depths 1-4 cm (RFT applies alpha that way; the
