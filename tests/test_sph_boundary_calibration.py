@@ -5,6 +5,7 @@ import math
 
 import numpy as np
 import pytest
+import xarray as xr
 
 from terradyn.errors import InputError
 from terradyn.sph import calibration, kernels, materials, suite
@@ -65,7 +66,7 @@ def test_calibration_search_finds_the_friction_angle_of_a_monotone_plate_model(m
     # recover the phi that gives the target slope, from the repose angle, in a few runs
     calls = []
 
-    def fake(mat, dx, config=None, realizations=1, starts="nm"):
+    def fake(mat, dx, config=None, realizations=1, starts="nm", store=None):
         calls.append(mat.friction)
         return {"alpha_z": 0.8 * mat.density * 9.81 * calibration.bearing_nq(mat.friction)}
 
@@ -79,7 +80,7 @@ def test_calibration_search_finds_the_friction_angle_of_a_monotone_plate_model(m
 
 
 def test_calibration_reports_a_target_it_cannot_reach(monkeypatch):
-    monkeypatch.setattr(calibration, "plate_slope", lambda mat, dx, config=None, realizations=1, starts="nm": {"alpha_z": 1e3})
+    monkeypatch.setattr(calibration, "plate_slope", lambda mat, dx, **kw: {"alpha_z": 1e3})
     cal = calibration.calibrate_friction(materials.from_medium("poppy LP"), 3.5e5, max_evals=4)
     assert not cal.converged and cal.note
 
@@ -441,7 +442,7 @@ def test_phase_starts_spread_the_plate_runs_over_one_particle_spacing(monkeypatc
     def fake_push(mat, *, realization, config, **kw):
         seen.append((realization, config.dx))
         d = np.linspace(0, 0.04, 41)
-        return {"depth": d, "stress": 1e5 * d, "series": None}
+        return {"depth": d, "stress": 1e5 * d, "series": xr.Dataset({"Fz": ("time", 1e5 * d)})}
 
     monkeypatch.setattr(validation, "plate_push", fake_push)
     got = calibration.plate_slope(materials.from_medium("poppy LP"), config=SPHConfig(dx=4e-3),
@@ -465,6 +466,16 @@ def test_calibrate_cli_takes_phase_starts_and_records_them(monkeypatch, tmp_path
                  "-o", str(out)]) == 0
     assert kws[-1]["starts"] == "phase" and kws[-1]["realizations"] == 5
     assert json.loads(out.read_text())["_meta"]["starts"] == "phase"
+    # the plate runs are kept beside the output (resumable), or where --store says
+    assert kws[-1]["store"] == tmp_path / "c.runs"
+    assert json.loads(out.read_text())["_meta"]["run_store"] == str(tmp_path / "c.runs")
+    assert main(["sph", "calibrate", "--medium", "poppy LP", "--store", str(tmp_path / "mine"),
+                 "-o", str(tmp_path / "d.json")]) == 0
+    assert kws[-1]["store"] == tmp_path / "mine"
+    (tmp_path / "afile").write_text("x")
+    assert main(["sph", "calibrate", "--medium", "poppy LP", "--store", str(tmp_path / "afile")]) == 2
+    assert "store" in capsys.readouterr().err and len(kws) == 2
+    kws.pop()
     for bad, field in ((["--starts", "lattice"], "starts"), (["--starts", "phase", "--realizations", "1"],
                                                               "realizations")):
         assert main(["sph", "calibrate", "--medium", "poppy LP", *bad, "-o", str(tmp_path / "e.json")]) == 2
@@ -510,3 +521,61 @@ def test_sph_plate_cli_runs_a_medium_with_its_calibration_at_dx_mm(monkeypatch, 
     for dx_mm, want in (("1.6", 35.5), ("2", 33.0)):
         assert main(["sph", "plate", "--medium", "poppy LP", "--dx-mm", dx_mm]) != 0  # stopped once it had them
         assert seen[-1] == (pytest.approx(want), pytest.approx(float(dx_mm) * 1e-3))
+
+
+def test_calibration_stops_at_a_first_angle_that_already_meets_the_target(monkeypatch):
+    # checking a calibration (the search starts at the shipped angle) costs one plate test
+    # when that angle is within tol; its standard error comes from the runs' scatter
+    calls = []
+
+    def fake(mat, dx, realizations=1, **kw):
+        calls.append(mat.friction / DEG)
+        a = 0.8 * mat.density * 9.81 * calibration.bearing_nq(mat.friction)
+        return {"alpha_z": a, "alphas": [a * (1 + e) for e in (-0.02, 0.0, 0.02)]}
+
+    monkeypatch.setattr(calibration, "plate_slope", fake)
+    mat = materials.from_medium("3 mm glass CP", friction_deg=31.0)
+    want = 0.8 * mat.density * 9.81 * calibration.bearing_nq(31.2 * DEG)  # 2.5 % above
+    cal = calibration.calibrate_friction(mat, want, tol=0.03, realizations=3)
+    assert calls == [pytest.approx(31.0)] and cal.converged and cal.friction_deg == pytest.approx(31.0)
+    assert len(cal.history) == 1 and "first angle" in cal.note
+    # the s.e.: sem of the logs (2 % spread of 3 runs) over dln N_q/dphi (about 0.1 per deg)
+    assert 0.05 < cal.friction_se_deg < 0.2
+    # outside tol it searches on
+    calls.clear()
+    cal = calibration.calibrate_friction(mat, want, tol=0.01, realizations=3)
+    assert len(calls) >= 2 and cal.friction_deg == pytest.approx(31.2, abs=0.1)
+
+
+def test_plate_runs_are_kept_in_a_store_and_read_back(monkeypatch, tmp_path):
+    """An interrupted calibration keeps the plate runs it finished: the same run is read from
+    the store, a different one (other friction, other start) is run, and a foreign file under
+    a run's name is refused, not overwritten."""
+    from terradyn.sph import validation
+    from terradyn.sph.state import SPHConfig
+
+    ran = []
+
+    def fake_push(mat, *, realization, config, **kw):
+        ran.append((round(mat.friction / DEG, 3), realization))
+        d = np.linspace(0, 0.04, 41)
+        return {"depth": d, "stress": (1e5 + realization) * d,
+                "series": xr.Dataset({"Fz": ("time", 1e5 * d)})}
+
+    monkeypatch.setattr(validation, "plate_push", fake_push)
+    mat = materials.from_medium("poppy LP", friction_deg=35.0)
+    cfg = SPHConfig(dx=4e-3)
+    first = calibration.plate_slope(mat, config=cfg, realizations=2, starts="phase", store=tmp_path)
+    mine = sorted(tmp_path.glob("plate-*.nc"))
+    assert first["stored"] == 0 and len(ran) == 2 and len(mine) == 2
+    again = calibration.plate_slope(mat, config=cfg, realizations=2, starts="phase", store=tmp_path)
+    assert len(ran) == 2 and again["stored"] == 2 and again["alphas"] == first["alphas"]
+    assert float(again["series"].Fz[-1]) == pytest.approx(4e3)
+    calibration.plate_slope(mat.with_(friction=36 * DEG), config=cfg, realizations=2, starts="phase",
+                            store=tmp_path)
+    assert len(ran) == 4
+    victim = mine[0]
+    victim.write_text("someone else's file")
+    with pytest.raises(InputError, match="store"):
+        calibration.plate_slope(mat, config=cfg, realizations=2, starts="phase", store=tmp_path)
+    assert victim.read_text() == "someone else's file"

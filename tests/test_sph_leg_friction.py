@@ -180,7 +180,7 @@ def test_calibrate_takes_the_plate_friction_and_the_merge_refuses_it(monkeypatch
         cmd.calibrate_cmd(medium=["poppy LP"], density_kg_m3=None, alpha_z_n_cm3=None,
                           name="custom", friction_start_deg=None, dx_mm=2.5, youngs_mpa=0.25,
                           tol=0.03, realizations=1, starts="nm", max_evals=2, plate_bed_pad_cm=None,
-                          leg_friction_deg=20.0, out=tmp_path / "c.json")
+                          leg_friction_deg=20.0, out=tmp_path / "c.json", store=None)
     assert seen == [pytest.approx(20 * DEG)]
     base = calibration.shipped()
     rec = dict(base["poppy LP"], converged=True)

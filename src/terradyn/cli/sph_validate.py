@@ -30,6 +30,7 @@ def calibrate_cmd(
     plate_bed_pad_cm: Optional[float] = typer.Option(None, "--plate-bed-pad-cm", show_default="the calibration bed, 9.5 cm beside and 7.6 cm below", help="Granular bed beyond the plate's edges and below its deepest point, cm, in [1, 50] (docs/sph.md 'Bed size')."),
     leg_friction_deg: Optional[float] = typer.Option(None, "--leg-friction-deg", help="Grain-plate friction angle of the plate, deg, in [0, 60]: calibrate for a plate (and legs) of that measured friction (default: none, a rough no-slip plate, as the shipped calibrations; below about 20 deg the plate bears less: docs/sph.md 'Grain-leg friction')."),
     out: Optional[Path] = typer.Option(None, "--out", "-o", help="Write the calibration JSON here (default: stdout)."),
+    store: Optional[Path] = typer.Option(None, "--store", show_default="OUT's name with .runs in place of .json, beside it, when --out is given; else none", help="Directory that keeps each finished plate run: the same command started again after an interruption reads them and goes on from there."),
 ):
     """Calibrate the SPH friction angle of a medium on its plate test (Li 2013 Table S3).
 
@@ -66,6 +67,12 @@ def calibrate_cmd(
         from ..io import check_output
 
         check_output(out, "out", (".json",))
+        if store is None:
+            store = out.with_suffix(".runs")
+    if store is not None:
+        from ..io import check_writable
+
+        check_writable(store, "store", directory=True)
     jobs = []
     if density_kg_m3 is not None or alpha_z_n_cm3 is not None:
         if medium:
@@ -93,13 +100,14 @@ def calibrate_cmd(
                         "plate_test": PLATE_TEST | ({} if bed_pad is None else {"bed_pad_m": bed_pad})
                         | ({} if leg_friction is None else {"leg_friction_deg": leg_friction_deg}),
                         "dx_m": dx, "realizations": realizations, "starts": starts,
+                        **({} if store is None else {"run_store": str(store)}),
                         "terradyn_version": __version__,
                         "created": datetime.datetime.now(datetime.timezone.utc).isoformat(timespec="seconds"),
                         "machine": platform.platform()}}
     for mat, target in jobs:
         err(f"calibrating {mat.name}: measured alpha_z = {target / N_PER_CM3:g} N/cm^3")
         cal = calibrate_friction(mat, target, dx=dx, tol=tol, realizations=realizations,
-                                 max_evals=max_evals, config=config, starts=starts,
+                                 max_evals=max_evals, config=config, starts=starts, store=store,
                                  report=lambda p, a: err(f"  phi = {p:.2f} deg -> alpha_z = {a:.4f} N/cm^3"))
         result[mat.name] = cal.describe() | {"density_kg_m3": mat.density, "youngs_Pa": mat.youngs,
                                              "dp_match": mat.dp_match}

@@ -70,8 +70,35 @@ def start_offsets(realizations: int, dx: float, starts: str = "nm", first: int =
     return [round(j * dx / n / 1e-8) for j in range(n)]
 
 
+def plate_run(mat, config, realization: int = 0, below: float | None = None, store=None) -> dict:
+    """One run of the plate test (:data:`PLATE_TEST`, :func:`terradyn.sph.validation.plate_push`)
+    of ``mat`` with ``config``: the plate's centre depth (m), its stress (Pa) and the force
+    series. ``store``: a directory where the finished run is kept (``plate-KEY.nc``,
+    :mod:`terradyn.sph.runstore`) and from which the same run is read again; ``stored`` says
+    whether it was."""
+    from .runstore import RUN_MODULES, code_digest, stored
+    from .validation import plate_push
+
+    def compute(_checkpoint=None):
+        r = plate_push(mat, speed=PLATE_TEST["speed_m_s"], depth=PLATE_TEST["depth_m"],
+                       n_samples=PLATE_TEST["n_samples"], fit_from=PLATE_TEST["fit_from_m"],
+                       config=config, realization=realization, below=below)
+        return r["series"].assign(plate_depth_m=("plate_sample", r["depth"]),
+                                  plate_stress_Pa=("plate_sample", r["stress"]))
+
+    if store is None:
+        ds, was = compute(), False
+    else:
+        spec = {"scene": "plate", "plate_test": PLATE_TEST, "material": mat.describe(),
+                "config": config.run_items(), "realization": int(realization), "below": below,
+                "code": code_digest((*RUN_MODULES, "terradyn.sph.validation"))}
+        ds, was = stored(store, "plate", spec, compute)
+    return {"depth": ds.plate_depth_m.values, "stress": ds.plate_stress_Pa.values,
+            "series": ds.drop_vars(["plate_depth_m", "plate_stress_Pa"]), "stored": was}
+
+
 def plate_slope(mat, *, dx: float = 4e-3, config=None, realizations: int = 1, first: int = 0,
-                below: float | None = None, starts: str = "nm") -> dict:
+                below: float | None = None, starts: str = "nm", store=None) -> dict:
     """The SPH plate test (:func:`terradyn.sph.validation.plate_push`, :data:`PLATE_TEST`)
     for a :class:`~terradyn.sph.materials.GranularMaterial`, averaged over ``realizations``
     runs (physically identical starts, see plate_push's ``realization``), numbered from
@@ -79,7 +106,8 @@ def plate_slope(mat, *, dx: float = 4e-3, config=None, realizations: int = 1, fi
     ``config.bed_pad`` sets the bed as in plate_push (None: the calibration's bed), and
     ``below`` (m) the bed below the plate on its own, as there. ``starts`` (:data:`STARTS`):
     "nm", the runs 10 nm apart from ``first``; "phase", spread over one particle spacing
-    (:func:`start_offsets`). At 2.5 mm the calibration's two runs from the standard start of
+    (:func:`start_offsets`). ``store``: a directory that keeps each finished run
+    (:func:`plate_run`), so that a repeated or interrupted test reads the runs it has. At 2.5 mm the calibration's two runs from the standard start of
     0.3 mm glass CP read about 4 % above the mean over five lattice phases (docs/sph.md "Run-to-run scatter").
 
     Returns ``alpha_z`` (N/m^3): the RFT-consistent coefficient, the least-squares fit of
@@ -87,21 +115,20 @@ def plate_slope(mat, *, dx: float = 4e-3, config=None, realizations: int = 1, fi
     SPH stress-depth curve has an intercept, the plate's own bearing term 0.5 rho g B N_gamma
     plus its mobilisation, and a free slope-and-intercept fit trades one for the other from
     run to run); also each run's value, the free fit's slope and intercept (Pa), the wall
-    time and the last run's depth, stress and force series."""
+    time, how many runs were read from ``store``, and the last run's depth, stress and force
+    series."""
     import time
 
     import numpy as np
 
     from .state import SPHConfig
-    from .validation import plate_push
 
     cfg = config or SPHConfig(dx=dx)
     t0 = time.perf_counter()
-    alphas, slopes, icpts = [], [], []
+    alphas, slopes, icpts, n_stored = [], [], [], 0
     for k in start_offsets(realizations, cfg.dx, starts, first):
-        r = plate_push(mat, speed=PLATE_TEST["speed_m_s"], depth=PLATE_TEST["depth_m"],
-                       n_samples=PLATE_TEST["n_samples"], fit_from=PLATE_TEST["fit_from_m"],
-                       config=cfg, realization=k, below=below)
+        r = plate_run(mat, cfg, k, below, store)
+        n_stored += r["stored"]
         d, st = r["depth"], r["stress"]
         m = d > PLATE_TEST["fit_from_m"]
         slope, icpt = np.polyfit(d[m], st[m], 1)
@@ -111,6 +138,7 @@ def plate_slope(mat, *, dx: float = 4e-3, config=None, realizations: int = 1, fi
     return {"alpha_z": float(np.mean(alphas)), "alphas": alphas,
             "slope": float(np.mean(slopes)), "slopes": slopes,
             "intercept_Pa": float(np.mean(icpts)), "wall_s": time.perf_counter() - t0,
+            "stored": n_stored,
             "depth": d, "stress": st, "series": r["series"]}
 
 
@@ -145,7 +173,7 @@ class Calibration:
 def calibrate_friction(mat, alpha_z_measured: float, *, dx: float = 4e-3, tol: float = 0.03,
                        max_evals: int = 6, realizations: int = 1, config=None,
                        report: Callable[[float, float], None] | None = None,
-                       starts: str = "nm") -> Calibration:
+                       starts: str = "nm", store=None) -> Calibration:
     """The friction angle at which the SPH plate test of ``mat`` (a GranularMaterial: its
     density, stiffness and the rest are kept) gives ``alpha_z_measured`` (N/m^3).
 
@@ -154,20 +182,29 @@ def calibrate_friction(mat, alpha_z_measured: float, *, dx: float = 4e-3, tol: f
     and moves to where the line meets the target: first from the repose angle by the
     bearing-capacity scaling N_q(phi), then by the fit, until the estimate moves less than
     0.25 deg (or ``max_evals`` plate tests). Converged: the fitted slope at the estimate is the
-    target and the nearest evaluation is within ``tol`` + the scatter. ``report(phi_deg,
+    target and the nearest evaluation is within ``tol`` + the scatter. When the first
+    angle (the medium's own: for a Li 2013 medium its shipped calibration) already gives the
+    target within ``tol``, the search stops there: checking a calibration costs one plate test
+    (its standard error then comes from the runs' scatter and the growth of N_q with phi,
+    and ``note`` says so). ``report(phi_deg,
     alpha_z_N_per_cm3)`` after each test (about 20 s each at dx = 4 mm on 2 cores).
     ``config`` (an SPHConfig; None: ``SPHConfig(dx=dx)``) also sets the plate test's bed
-    (``bed_pad``, :func:`plate_slope`); ``starts`` how its runs start (:data:`STARTS`)."""
+    (``bed_pad``, :func:`plate_slope`); ``starts`` how its runs start (:data:`STARTS`);
+    ``store`` a directory that keeps every finished plate run, so that a calibration stopped
+    part-way and started again reads the runs it made (:func:`plate_run`)."""
     import numpy as np
 
     target = positive("alpha_z_measured", alpha_z_measured, "N/m^3")
     in_range("tol", tol, 1e-3, 0.5)
     lo_b, hi_b = PHI_RANGE
     pts: list[tuple[float, float]] = []  # (phi_deg, log(alpha / target))
+    runs: list[list[float]] = []  # each evaluation's single-run alphas (N/m^3)
 
     def f(phi_deg):
-        a = plate_slope(mat.with_(friction=phi_deg * DEG), dx=dx, config=config,
-                        realizations=realizations, starts=starts)["alpha_z"]
+        r = plate_slope(mat.with_(friction=phi_deg * DEG), dx=dx, config=config,
+                        realizations=realizations, starts=starts, store=store)
+        a = r["alpha_z"]
+        runs.append([x for x in r.get("alphas", [a]) if x > 0])
         pts.append((phi_deg, math.log(a / target) if a > 0 else -10.0))
         if report:
             report(phi_deg, a / N_PER_CM3)
@@ -175,6 +212,19 @@ def calibrate_friction(mat, alpha_z_measured: float, *, dx: float = 4e-3, tol: f
 
     phi0 = min(max(mat.friction / DEG, lo_b), hi_b)
     g0 = f(phi0)
+    if abs(g0) <= math.log1p(tol) and lo_b < phi0 < hi_b:
+        # the first angle (a shipped calibration being checked, or a good guess) already
+        # meets the target: keep it. Its standard error: the scatter of the runs' log alpha
+        # over the plate slope's growth with phi, taken as that of N_q (the search's model)
+        logs = [math.log(x) for x in runs[0]]
+        n = len(logs)
+        d_lnnq = (math.log(bearing_nq((phi0 + 0.05) * DEG)) - math.log(bearing_nq((phi0 - 0.05) * DEG))) / 0.1
+        se = (float(np.std(logs, ddof=1)) / math.sqrt(n) / d_lnnq) if n > 1 else float("nan")
+        return Calibration(mat.name, phi0, target / N_PER_CM3, target * math.exp(g0) / N_PER_CM3,
+                           dx, [(pts[0][0], target * math.exp(g0) / N_PER_CM3)], converged=True,
+                           friction_se_deg=se,
+                           note="the first angle meets the target within tol; standard error "
+                                "from the runs' scatter and the slope of N_q(phi)")
     want = bearing_nq(phi0 * DEG) * math.exp(-g0)
     a, b = lo_b * DEG, hi_b * DEG
     for _ in range(60):
@@ -331,7 +381,7 @@ def merge_resolutions(base: dict, new: dict) -> dict:
             raise InputError("medium", f"{m!r} has no production calibration to add a resolution to")
         if not rec.get("converged", False):
             raise InputError("medium", f"the calibration of {m!r} did not converge ({rec.get('note', '')})")
-        rec = dict(rec, **{k: meta[k] for k in ("created", "realizations") if k in meta})
+        rec = dict(rec, **{k: meta[k] for k in ("created", "realizations", "starts") if k in meta})
         if pad is not None:
             if abs(rec["dx_m"] - out[m]["dx_m"]) > 1e-9:
                 raise InputError("dx_m", f"a large-bed calibration of {m!r} must be at the production "

@@ -21,6 +21,7 @@ from ..geometry import ArcLeg, make_leg
 from ..media import LI2013, MEDIA, stress_model
 from ..motion import PlanarMotion, Rotation
 from ..units import CM, DEG, N_PER_CM3
+from .runstore import RUN_MODULES, code_digest, stored
 
 SCENES = ("bed", "column", "plate", "rig", "legs")
 #: Media with measured leg curves (Li 2013 Fig. S5).
@@ -212,24 +213,13 @@ def check_realizations(n) -> int:
     return k
 
 
-#: The modules that define a 2D leg run's forces (:func:`leg_run` keys stored runs to their
-#: sources, so that a run stored by other code is recomputed, never reused; the GPU loops are
-#: left out because a run's key does not depend on the backend, as for checkpoints).
-LEG_RUN_MODULES = ("terradyn.geometry", "terradyn.motion", "terradyn.sph.api", "terradyn.sph.scenes",
-                   "terradyn.sph.solver", "terradyn.sph.cpu", "terradyn.sph.physics",
-                   "terradyn.sph.kernels", "terradyn.sph.neighbours", "terradyn.sph.materials",
-                   "terradyn.sph.state", "terradyn.sph.source")
+#: The modules that define a 2D leg run's forces (kept for callers of the former name).
+LEG_RUN_MODULES = RUN_MODULES
 
 
 def leg_run_code() -> str:
     """Digest of the sources of :data:`LEG_RUN_MODULES` (part of a stored run's key)."""
-    import importlib
-
-    from .._jitcache import source_digest
-
-    for m in LEG_RUN_MODULES:
-        importlib.import_module(m)
-    return source_digest(LEG_RUN_MODULES)
+    return code_digest(RUN_MODULES)
 
 
 def leg_run(name: str, motion: Rotation, mat, config, *, store=None, progress=None):
@@ -243,39 +233,17 @@ def leg_run(name: str, motion: Rotation, mat, config, *, store=None, progress=No
     (``.leg-NAME-KEY.ckpt.npz``, every minute) lets an interrupted run resume where it stopped.
     A file under that name that is not this run's is refused (:class:`InputError` on
     ``store``), never overwritten. Returns (series, True if it was read from the store)."""
-    import hashlib
-    import json
     from dataclasses import asdict
-    from pathlib import Path
 
-    import xarray as xr
-
-    from .. import io
     from .api import simulate
 
     leg = make_leg(name)
     if store is None:
         return simulate(leg, motion, mat, config=config, progress=progress), False
-    store = Path(store)
     spec = {"leg": name, "motion": asdict(motion), "material": mat.describe(),
             "config": config.run_items(), "code": leg_run_code()}
-    key = hashlib.sha256(json.dumps(spec, sort_keys=True, default=str).encode()).hexdigest()[:16]
-    path = store / f"leg-{name}-{key}.nc"
-    if path.exists():
-        try:
-            ds = xr.load_dataset(path, engine="h5netcdf")
-        except Exception:  # noqa: BLE001 - any unreadable file is "not ours"
-            ds = None
-        if ds is None or ds.attrs.get("terradyn_run_key") != key:
-            raise InputError("store", f"{path} exists and is not a stored run of this leg test: "
-                                      "remove it or choose another directory")
-        return ds, True
-    io.check_writable(store, "store", directory=True)
-    ds = simulate(leg, motion, mat, config=config, progress=progress,
-                  checkpoint=store / f".leg-{name}-{key}.ckpt.npz")
-    ds = ds.assign_attrs(terradyn_run_key=key, terradyn_run_spec=json.dumps(spec, sort_keys=True, default=str))
-    io.write_netcdf(ds, path)
-    return ds, False
+    return stored(store, f"leg-{name}", spec,
+                  lambda ckpt: simulate(leg, motion, mat, config=config, progress=progress, checkpoint=ckpt))
 
 
 def leg_vs_measured(name: str, medium, *, omega=1.1, dx=4e-3, config=None, progress=None, realizations: int = 1,
