@@ -539,6 +539,8 @@ def test_calibration_stops_at_a_first_angle_that_already_meets_the_target(monkey
     cal = calibration.calibrate_friction(mat, want, tol=0.03, realizations=3)
     assert calls == [pytest.approx(31.0)] and cal.converged and cal.friction_deg == pytest.approx(31.0)
     assert len(cal.history) == 1 and "first angle" in cal.note
+    runs = cal.describe()["history_runs"]  # each run's alpha_z, N/cm^3
+    assert len(runs) == 1 and np.mean(runs[0]) == pytest.approx(cal.history[0][1], rel=1e-3)
     # the s.e.: sem of the logs (2 % spread of 3 runs) over dln N_q/dphi (about 0.1 per deg)
     assert 0.05 < cal.friction_se_deg < 0.2
     # outside tol it searches on

@@ -157,6 +157,8 @@ class Calibration:
     converged: bool = True
     friction_se_deg: float = float("nan")
     note: str = ""
+    #: each evaluation's single-run alpha_z (N/cm^3), in the order of ``history``
+    history_runs: list = field(default_factory=list)
 
     def describe(self) -> dict:
         return {"medium": self.medium, "friction_deg": round(self.friction_deg, 3),
@@ -167,6 +169,8 @@ class Calibration:
                 "relative_difference": round(self.alpha_z_sph / self.alpha_z_measured - 1, 4),
                 "dx_m": self.dx_m, "converged": self.converged, "note": self.note,
                 "history": [[round(p, 3), round(a, 4)] for p, a in self.history],
+                **({"history_runs": [[round(a, 4) for a in r] for r in self.history_runs]}
+                   if self.history_runs else {}),
                 "plate_test": PLATE_TEST}
 
 
@@ -204,7 +208,7 @@ def calibrate_friction(mat, alpha_z_measured: float, *, dx: float = 4e-3, tol: f
         r = plate_slope(mat.with_(friction=phi_deg * DEG), dx=dx, config=config,
                         realizations=realizations, starts=starts, store=store)
         a = r["alpha_z"]
-        runs.append([x for x in r.get("alphas", [a]) if x > 0])
+        runs.append([x / N_PER_CM3 for x in r.get("alphas", [a]) if x > 0])
         pts.append((phi_deg, math.log(a / target) if a > 0 else -10.0))
         if report:
             report(phi_deg, a / N_PER_CM3)
@@ -222,7 +226,7 @@ def calibrate_friction(mat, alpha_z_measured: float, *, dx: float = 4e-3, tol: f
         se = (float(np.std(logs, ddof=1)) / math.sqrt(n) / d_lnnq) if n > 1 else float("nan")
         return Calibration(mat.name, phi0, target / N_PER_CM3, target * math.exp(g0) / N_PER_CM3,
                            dx, [(pts[0][0], target * math.exp(g0) / N_PER_CM3)], converged=True,
-                           friction_se_deg=se,
+                           friction_se_deg=se, history_runs=runs,
                            note="the first angle meets the target within tol; standard error "
                                 "from the runs' scatter and the slope of N_q(phi)")
     want = bearing_nq(phi0 * DEG) * math.exp(-g0)
@@ -265,7 +269,7 @@ def calibrate_friction(mat, alpha_z_measured: float, *, dx: float = 4e-3, tol: f
                           if not lo_b < est < hi_b else "the runs scatter more than tol")
     return Calibration(mat.name, est, target / N_PER_CM3, target * math.exp(g_est) / N_PER_CM3,
                        dx, [(p, target * math.exp(g) / N_PER_CM3) for p, g in pts],
-                       converged=ok, friction_se_deg=se, note=note)
+                       converged=ok, friction_se_deg=se, note=note, history_runs=runs)
 
 
 # ----------------------------------------------------------------- the shipped calibration
