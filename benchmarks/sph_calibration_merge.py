@@ -1,15 +1,19 @@
-"""Add plate-test calibrations made at other particle spacings, or in a larger plate bed, to
-the shipped calibration (issue 17: a medium runs with its calibration at the run's own spacing
-where one is shipped; ``--calibration-bed large`` takes the one made in a settled plate bed).
+"""Merge plate-test calibrations into the shipped calibration (issue 17): at the production
+spacing they replace a medium's record; at other particle spacings, or in a larger plate bed,
+they are added beside it (a medium runs with its calibration at the run's own spacing where
+one is shipped; ``--calibration-bed large`` takes the one made in a settled plate bed).
 
+    terradyn sph calibrate --medium "poppy LP" --dx-mm 2.5 -o poppy.json   (production)
     terradyn sph calibrate --medium "0.3 mm glass CP" --dx-mm 1.6 -o glass16.json
     terradyn sph calibrate --medium "poppy LP" --plate-bed-pad-cm 24 -o poppy_pad24.json
-    python benchmarks/sph_calibration_merge.py glass16.json poppy_pad24.json [more.json ...]
+    python benchmarks/sph_calibration_merge.py poppy.json glass16.json poppy_pad24.json [...]
 
-Each medium of each file goes under its ``other_resolutions`` in
-``src/terradyn/data/sph_calibration.json``, or under its ``large_bed`` when the file's plate
-test had a larger bed (``terradyn.sph.calibration.merge_resolutions``); the file is rewritten
-atomically."""
+A calibration at the production spacing replaces the medium's record and keeps the records
+under it; the file's ``_meta`` then says how the production records were made (``starts``,
+``realizations``) when all five were made the same way. Each medium of the other files goes
+under its ``other_resolutions`` in ``src/terradyn/data/sph_calibration.json``, or under its
+``large_bed`` when the file's plate test had a larger bed
+(``terradyn.sph.calibration.merge_resolutions``); the file is rewritten atomically."""
 from __future__ import annotations
 
 import json
@@ -35,6 +39,21 @@ def main(paths: list[str]) -> None:
         "plane-strain Prandtl reach beside it, docs/sph.md 'Bed size'), under each medium's "
         "large_bed: terradyn sph calibrate --medium M --plate-bed-pad-cm P, merged by "
         "benchmarks/sph_calibration_merge.py; taken with --calibration-bed large")
+    prod = [r for m, r in data.items() if m != "_meta"]
+    how = {(r.get("starts", "nm"), r.get("realizations", data["_meta"].get("realizations"))) for r in prod}
+    if len(how) == 1:  # every production record made the same way: say so at the top
+        starts, n = how.pop()
+        data["_meta"]["starts"], data["_meta"]["realizations"] = starts, n
+        if starts == "phase":
+            data["_meta"]["command"] = (
+                f"terradyn sph calibrate --medium M --dx-mm 2.5 --starts phase --realizations {n} "
+                "(one run per medium, merged by benchmarks/sph_calibration_merge.py; each record's "
+                "created says when)")
+    else:
+        data["_meta"]["starts"] = data["_meta"]["realizations"] = data["_meta"]["command"] = (
+            "per medium: each production record's starts, realizations and created (none: the "
+            "first calibration, terradyn sph calibrate --medium M --dx-mm 2.5 --starts nm "
+            "--realizations 2)")
     atomic_write_text(SHIPPED, json.dumps(data, indent=1) + "\n")
     for m, r in data.items():
         if m != "_meta":

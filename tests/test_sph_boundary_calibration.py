@@ -581,3 +581,33 @@ def test_plate_runs_are_kept_in_a_store_and_read_back(monkeypatch, tmp_path):
     with pytest.raises(InputError, match="store"):
         calibration.plate_slope(mat, config=cfg, realizations=2, starts="phase", store=tmp_path)
     assert victim.read_text() == "someone else's file"
+
+
+def test_validation_update_replaces_the_rerun_checks_and_keeps_the_rest(tmp_path):
+    """benchmarks/sph_validation_update.py: a partial rerun's checks replace the shipped ones
+    with the same scene and quantity, new ones are added, the summary is recounted and the
+    update is recorded."""
+    import importlib.util
+    from pathlib import Path
+
+    path = Path(__file__).parent.parent / "benchmarks" / "sph_validation_update.py"
+    spec = importlib.util.spec_from_file_location("sph_validation_update", path)
+    mod = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(mod)
+
+    def check(q, ours, verdict):
+        return {"scene": "legs", "quantity": q, "ours": ours, "verdict": verdict}
+
+    old = {"checks": [check("a", 1.0, "fail"), check("b", 2.0, "pass")], "settings": {"x": 1},
+           "details": {"legs": {"a": {"peak": 1.0}, "b": {"peak": 2.0}}}, "summary": {}}
+    new = {"checks": [check("a", 1.5, "pass"), check("c", 3.0, "fail")], "settings": {"y": 2},
+           "details": {"legs": {"a": {"peak": 1.5}}}}
+    (tmp_path / "old.json").write_text(json.dumps(old))
+    (tmp_path / "new.json").write_text(json.dumps(new))
+    assert mod.main([str(tmp_path / "old.json"), str(tmp_path / "new.json"), "--note", "why"]) == 0
+    got = json.loads((tmp_path / "old.json").read_text())
+    assert [(c["quantity"], c["ours"]) for c in got["checks"]] == [("a", 1.5), ("b", 2.0), ("c", 3.0)]
+    assert got["summary"] == {"pass": 2, "fail": 1, "total": 3}
+    assert got["details"]["legs"] == {"a": {"peak": 1.5}, "b": {"peak": 2.0}}
+    assert got["settings"]["x"] == 1 and got["settings"]["updates"][0]["note"] == "why"
+    assert got["settings"]["updates"][0]["checks_rerun"] == ["a", "c"]

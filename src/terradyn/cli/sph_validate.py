@@ -24,8 +24,8 @@ def calibrate_cmd(
     dx_mm: float = typer.Option(2.5, "--dx-mm", help="Particle spacing of the plate test, mm (the resolution the medium will run at; 2.5 is the production resolution, docs/sph.md)."),
     youngs_mpa: float = typer.Option(0.25, "--youngs-mpa", help="Young's modulus of the SPH material, MPa (numerical stiffness; at friction angles above ~40 deg the plate test needs >= 1 MPa, docs/sph.md)."),
     tol: float = typer.Option(0.03, help="Relative tolerance on the plate slope."),
-    realizations: int = typer.Option(2, help="Plate runs averaged per friction angle (single runs scatter by about 10 %)."),
-    starts: str = typer.Option("nm", help="Where those runs start: 'nm' (10 nm apart, as the shipped calibrations) or 'phase' (spread over one particle spacing, so the plate meets the particle lattice at that many phases; at 2.5 mm the standard start of 0.3 mm glass CP reads about 4 % high: docs/sph.md 'Run-to-run scatter')."),
+    realizations: int = typer.Option(5, help="Plate runs averaged per friction angle (single runs scatter by about 10 %)."),
+    starts: str = typer.Option("phase", help="Where those runs start: 'phase' (spread over one particle spacing, so the plate meets the particle lattice at that many phases, as the shipped production calibrations) or 'nm' (10 nm apart from the standard start, as the calibrations before 2026-12-07; at 2.5 mm the standard start of 0.3 mm glass CP reads about 4 % high: docs/sph.md 'Run-to-run scatter')."),
     max_evals: int = typer.Option(6, help="Most friction angles tried per medium."),
     plate_bed_pad_cm: Optional[float] = typer.Option(None, "--plate-bed-pad-cm", show_default="the calibration bed, 9.5 cm beside and 7.6 cm below", help="Granular bed beyond the plate's edges and below its deepest point, cm, in [1, 50] (docs/sph.md 'Bed size')."),
     leg_friction_deg: Optional[float] = typer.Option(None, "--leg-friction-deg", help="Grain-plate friction angle of the plate, deg, in [0, 60]: calibrate for a plate (and legs) of that measured friction (default: none, a rough no-slip plate, as the shipped calibrations; below about 20 deg the plate bears less: docs/sph.md 'Grain-leg friction')."),
@@ -36,8 +36,10 @@ def calibrate_cmd(
 
     The plate is pushed straight down in the same 2D SPH set-up the model runs in; the
     friction angle is searched until its stress-depth slope matches the measured one. Leg
-    forces are never used. The shipped calibration is `terradyn sph calibrate --dx-mm 2.5
-    -o src/terradyn/data/sph_calibration.json` (the production resolution).
+    forces are never used. The shipped production calibration is this command with its
+    defaults (2.5 mm, five runs started at as many lattice phases) for each medium, merged
+    by `python benchmarks/sph_calibration_merge.py` (docs/sph.md). A Li 2013 medium starts at
+    its shipped angle, so checking a calibration costs one plate test when that angle holds.
     """
     import datetime
     import platform

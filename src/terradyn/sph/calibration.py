@@ -175,9 +175,9 @@ class Calibration:
 
 
 def calibrate_friction(mat, alpha_z_measured: float, *, dx: float = 4e-3, tol: float = 0.03,
-                       max_evals: int = 6, realizations: int = 1, config=None,
+                       max_evals: int = 6, realizations: int = 5, config=None,
                        report: Callable[[float, float], None] | None = None,
-                       starts: str = "nm", store=None) -> Calibration:
+                       starts: str = "phase", store=None) -> Calibration:
     """The friction angle at which the SPH plate test of ``mat`` (a GranularMaterial: its
     density, stiffness and the rest are kept) gives ``alpha_z_measured`` (N/m^3).
 

@@ -300,7 +300,9 @@ def from_medium(medium: str, youngs: float | None = None, poisson: float = 0.3,
         bed = cal.get("plate_test", {}).get("bed_pad_m")
         src = (f"calibrated: the SPH plate test (dx = {cal['dx_m'] * 1e3:g} mm, E = "
                f"{e_cal / 1e6:g} MPa, {dp_match} match"
-               + ("" if bed is None else f", plate bed {bed * 100:g} cm beside and below it") + ") reproduces the "
+               + ("" if bed is None else f", plate bed {bed * 100:g} cm beside and below it")
+               + (f", mean of {cal.get('realizations')} runs started at as many lattice phases"
+                  if cal.get("starts") == "phase" else "") + ") reproduces the "
                f"measured alpha_z(0, pi/2) = {cal['alpha_z_measured_N_per_cm3']:g} N/cm^3 "
                f"({LI2013}, Table S3) within {abs(cal['relative_difference']) * 100:.1f} %; "
                "terradyn sph calibrate")
