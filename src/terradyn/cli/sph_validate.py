@@ -20,7 +20,7 @@ def calibrate_cmd(
     density_kg_m3: Optional[float] = typer.Option(None, help="A user's medium: bulk density, kg/m^3 (grain density x volume fraction)."),
     alpha_z_n_cm3: Optional[float] = typer.Option(None, "--alpha-z-n-cm3", help="A user's medium: measured plate-test slope alpha_z(0, pi/2), N/cm^3."),
     name: str = typer.Option("custom", help="A user's medium: its name in the output."),
-    friction_start_deg: Optional[float] = typer.Option(None, show_default=False, help="First friction angle of the search, deg [default: a Li 2013 medium's shipped calibration (its angle of repose where there is none); a user's medium 30]."),
+    friction_start_deg: Optional[float] = typer.Option(None, show_default=False, help="First friction angle of the search, deg; the search stops there when its plate slope is already within --tol [default: a Li 2013 medium's shipped calibration (its angle of repose where there is none); a user's medium 30]."),
     dx_mm: float = typer.Option(2.5, "--dx-mm", help="Particle spacing of the plate test, mm (the resolution the medium will run at; 2.5 is the production resolution, docs/sph.md)."),
     youngs_mpa: float = typer.Option(0.25, "--youngs-mpa", help="Young's modulus of the SPH material, MPa (numerical stiffness; at friction angles above ~40 deg the plate test needs >= 1 MPa, docs/sph.md)."),
     tol: float = typer.Option(0.03, help="Relative tolerance on the plate slope."),
