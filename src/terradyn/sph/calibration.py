@@ -107,8 +107,9 @@ def plate_slope(mat, *, dx: float = 4e-3, config=None, realizations: int = 1, fi
     ``below`` (m) the bed below the plate on its own, as there. ``starts`` (:data:`STARTS`):
     "nm", the runs 10 nm apart from ``first``; "phase", spread over one particle spacing
     (:func:`start_offsets`). ``store``: a directory that keeps each finished run
-    (:func:`plate_run`), so that a repeated or interrupted test reads the runs it has. At 2.5 mm the calibration's two runs from the standard start of
-    0.3 mm glass CP read about 4 % above the mean over five lattice phases (docs/sph.md "Run-to-run scatter").
+    (:func:`plate_run`), so that a repeated or interrupted test reads the runs it has. At
+    2.5 mm the former calibration's two runs from the standard start of 0.3 mm glass CP read
+    about 4 % above the mean over five lattice phases (docs/sph.md "Run-to-run scatter").
 
     Returns ``alpha_z`` (N/m^3): the RFT-consistent coefficient, the least-squares fit of
     sigma = alpha |z| through the origin over depths 1-4 cm (RFT applies alpha that way; the
@@ -202,7 +203,7 @@ def calibrate_friction(mat, alpha_z_measured: float, *, dx: float = 4e-3, tol: f
     in_range("tol", tol, 1e-3, 0.5)
     lo_b, hi_b = PHI_RANGE
     pts: list[tuple[float, float]] = []  # (phi_deg, log(alpha / target))
-    runs: list[list[float]] = []  # each evaluation's single-run alphas (N/m^3)
+    runs: list[list[float]] = []  # each evaluation's single-run alphas (N/cm^3)
 
     def f(phi_deg):
         r = plate_slope(mat.with_(friction=phi_deg * DEG), dx=dx, config=config,

@@ -213,12 +213,9 @@ def check_realizations(n) -> int:
     return k
 
 
-#: The modules that define a 2D leg run's forces (kept for callers of the former name).
-LEG_RUN_MODULES = RUN_MODULES
-
-
 def leg_run_code() -> str:
-    """Digest of the sources of :data:`LEG_RUN_MODULES` (part of a stored run's key)."""
+    """Digest of the sources of :data:`terradyn.sph.runstore.RUN_MODULES` (part of a stored
+    leg run's key)."""
     return code_digest(RUN_MODULES)
 
 
