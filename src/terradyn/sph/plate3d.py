@@ -232,39 +232,45 @@ def _make_ghosts(pos, kind, src, gs, go, fp, ip):
     return g
 
 
+@njit(inline="always")
+def _ghost_one(g, pos, vel, gv, rho, mass, sig, kind, nz, wn, dcl, grd, side, src, gs, go):
+    """Refresh ghost g from its source (reflected position, velocities, marker normal and
+    stress)."""
+    s = src[g]
+    sx = gs[g, 0]
+    sy = gs[g, 1]
+    pos[g, 0] = sx * pos[s, 0] + go[g, 0]
+    pos[g, 1] = sy * pos[s, 1] + go[g, 1]
+    pos[g, 2] = pos[s, 2]
+    vel[g, 0] = sx * vel[s, 0]
+    vel[g, 1] = sy * vel[s, 1]
+    vel[g, 2] = vel[s, 2]
+    gv[g, 0] = sx * gv[s, 0]
+    gv[g, 1] = sy * gv[s, 1]
+    gv[g, 2] = gv[s, 2]
+    rho[g] = rho[s]
+    mass[g] = mass[s]
+    kind[g] = kind[s]
+    nz[g] = nz[s]
+    wn[g, 0] = sx * wn[s, 0]
+    wn[g, 1] = wn[s, 1]
+    dcl[g] = dcl[s]
+    grd[g] = grd[s]
+    side[g] = side[s]
+    sig[g, S_XX] = sig[s, S_XX]
+    sig[g, S_YY] = sig[s, S_YY]
+    sig[g, S_ZZ] = sig[s, S_ZZ]
+    sig[g, S_XY] = sx * sy * sig[s, S_XY]
+    sig[g, S_XZ] = sx * sig[s, S_XZ]
+    sig[g, S_YZ] = sy * sig[s, S_YZ]
+
+
 @njit(cache=True, parallel=True)
 def _update_ghosts(pos, vel, gv, rho, mass, sig, kind, nz, wn, dcl, grd, side, src, gs, go, ip):
-    """Refresh every ghost from its source (reflected position, velocities, marker normal and
-    stress)."""
+    """Refresh every ghost from its source (:func:`_ghost_one`)."""
     nr = ip[I_NR]
     for g in prange(nr, nr + ip[I_NG]):
-        s = src[g]
-        sx = gs[g, 0]
-        sy = gs[g, 1]
-        pos[g, 0] = sx * pos[s, 0] + go[g, 0]
-        pos[g, 1] = sy * pos[s, 1] + go[g, 1]
-        pos[g, 2] = pos[s, 2]
-        vel[g, 0] = sx * vel[s, 0]
-        vel[g, 1] = sy * vel[s, 1]
-        vel[g, 2] = vel[s, 2]
-        gv[g, 0] = sx * gv[s, 0]
-        gv[g, 1] = sy * gv[s, 1]
-        gv[g, 2] = gv[s, 2]
-        rho[g] = rho[s]
-        mass[g] = mass[s]
-        kind[g] = kind[s]
-        nz[g] = nz[s]
-        wn[g, 0] = sx * wn[s, 0]
-        wn[g, 1] = wn[s, 1]
-        dcl[g] = dcl[s]
-        grd[g] = grd[s]
-        side[g] = side[s]
-        sig[g, S_XX] = sig[s, S_XX]
-        sig[g, S_YY] = sig[s, S_YY]
-        sig[g, S_ZZ] = sig[s, S_ZZ]
-        sig[g, S_XY] = sx * sy * sig[s, S_XY]
-        sig[g, S_XZ] = sx * sig[s, S_XZ]
-        sig[g, S_YZ] = sy * sig[s, S_YZ]
+        _ghost_one(g, pos, vel, gv, rho, mass, sig, kind, nz, wn, dcl, grd, side, src, gs, go)
 
 
 @njit(cache=True)
@@ -445,6 +451,31 @@ def _boundary_one(f, pos, vel, rho, sig, kind, wn, dcl, sb, sbo, wsb, reuse, bac
         bacc[w, 10] += rf * (gz * rz) * wgt
 
 
+@njit(inline="always", fastmath=True)
+def _boundary_fin(w, vel, gv, sig, kind, bacc):
+    """:func:`_boundary_pass`'s Shepard average for the real wall or plate particle w from
+    its sums bacc[w]."""
+    kw = kind[w]
+    if kw != WALL and kw != LEG:
+        return
+    ssum = bacc[w, 0]
+    if ssum > 0.0:
+        inv = 1.0 / ssum
+        p_add = -bacc[w, 10] * inv
+        for c in range(6):
+            sig[w, c] = bacc[w, 1 + c] * inv
+        sig[w, S_XX] += p_add
+        sig[w, S_YY] += p_add
+        sig[w, S_ZZ] += p_add
+        for c in range(3):
+            gv[w, c] = 2.0 * vel[w, c] - bacc[w, 7 + c] * inv
+    else:
+        for c in range(6):
+            sig[w, c] = 0.0
+        for c in range(3):
+            gv[w, c] = vel[w, c]
+
+
 @njit(cache=True, fastmath=True, parallel=True)
 def _boundary_pass(pos, vel, gv, rho, sig, kind, wn, dcl, sb, sbo, wsb, reuse, bacc, cell_idx,
                    bounds, fp, ip):
@@ -470,25 +501,7 @@ def _boundary_pass(pos, vel, gv, rho, sig, kind, wn, dcl, sb, sbo, wsb, reuse, b
                 _boundary_one(cell_idx[rk], pos, vel, rho, sig, kind, wn, dcl, sb, sbo, wsb,
                               reuse, bacc, h, gz, nr, sup2, c_w)
     for w in prange(nr):
-        kw = kind[w]
-        if kw != WALL and kw != LEG:
-            continue
-        ssum = bacc[w, 0]
-        if ssum > 0.0:
-            inv = 1.0 / ssum
-            p_add = -bacc[w, 10] * inv
-            for c in range(6):
-                sig[w, c] = bacc[w, 1 + c] * inv
-            sig[w, S_XX] += p_add
-            sig[w, S_YY] += p_add
-            sig[w, S_ZZ] += p_add
-            for c in range(3):
-                gv[w, c] = 2.0 * vel[w, c] - bacc[w, 7 + c] * inv
-        else:
-            for c in range(6):
-                sig[w, c] = 0.0
-            for c in range(3):
-                gv[w, c] = vel[w, c]
+        _boundary_fin(w, vel, gv, sig, kind, bacc)
 
 
 @njit(inline="always", fastmath=True)
@@ -561,6 +574,19 @@ def _strain_one(a, pos, vel, gv, rho, mass, kind, wn, dcl, side, ss, sso, sb, sb
                   vel[a, 2] - gv[w, 2], fdw * rx, fdw * ry, fdw * rz)
 
 
+@njit(inline="always", fastmath=True)
+def _dp_one(i, rho, sig, kind, lg, fp):
+    """:func:`dp_update3` of the real particle i from its pass-1 sums lg[i] (granular only)."""
+    if kind[i] != SOIL:
+        return
+    (rho[i], sig[i, S_XX], sig[i, S_YY], sig[i, S_ZZ], sig[i, S_XY], sig[i, S_XZ],
+     sig[i, S_YZ]) = dp_update3(
+        rho[i], lg[i, 0], lg[i, 1], lg[i, 2], lg[i, 3], lg[i, 4], lg[i, 5], lg[i, 6],
+        lg[i, 7], lg[i, 8], lg[i, 9], sig[i, S_XX], sig[i, S_YY], sig[i, S_ZZ],
+        sig[i, S_XY], sig[i, S_XZ], sig[i, S_YZ], fp[F_DT], fp[F_G], fp[F_K], fp[F_APHI],
+        fp[F_KC], fp[F_RMIN], fp[F_RMAX], fp[F_APSI], fp[F_RCRIT])
+
+
 @njit(cache=True, fastmath=True, parallel=True)
 def _strain_pass(pos, vel, gv, rho, mass, sig, kind, wn, dcl, side, ss, sso, sb, sbo, fss, fsb,
                  lg, cell_idx, bounds, fp, ip):
@@ -584,16 +610,8 @@ def _strain_pass(pos, vel, gv, rho, mass, sig, kind, wn, dcl, side, ss, sso, sb,
             for rk in range(bounds[jc], bounds[jc + 1]):
                 _strain_one(cell_idx[rk], pos, vel, gv, rho, mass, kind, wn, dcl, side, ss, sso,
                             sb, sbo, fss, fsb, lg, nr, sup2, dwc, inv_h)
-    dt = fp[F_DT]
     for i in prange(nr):
-        if kind[i] != SOIL:
-            continue
-        (rho[i], sig[i, S_XX], sig[i, S_YY], sig[i, S_ZZ], sig[i, S_XY], sig[i, S_XZ],
-         sig[i, S_YZ]) = dp_update3(
-            rho[i], lg[i, 0], lg[i, 1], lg[i, 2], lg[i, 3], lg[i, 4], lg[i, 5], lg[i, 6],
-            lg[i, 7], lg[i, 8], lg[i, 9], sig[i, S_XX], sig[i, S_YY], sig[i, S_ZZ],
-            sig[i, S_XY], sig[i, S_XZ], sig[i, S_YZ], dt, fp[F_G], fp[F_K], fp[F_APHI],
-            fp[F_KC], fp[F_RMIN], fp[F_RMAX], fp[F_APSI], fp[F_RCRIT])
+        _dp_one(i, rho, sig, kind, lg, fp)
 
 
 @njit(inline="always", fastmath=True)
@@ -713,6 +731,15 @@ def _accel_one(a, pos, vel, rho, mass, psig, kind, nz, wn, dcl, grd, ss, sso, sb
     cont[a, 3] = gnz
 
 
+@njit(inline="always", fastmath=True)
+def _psig_one(i, rho, sig, psig):
+    """sigma / rho^2 of particle i into psig[i]."""
+    r = rho[i]
+    inv2 = 1.0 / (r * r)
+    for c in range(6):
+        psig[i, c] = sig[i, c] * inv2
+
+
 @njit(cache=True, fastmath=True, parallel=True)
 def _accel_pass(pos, vel, rho, mass, sig, psig, kind, nz, wn, dcl, grd, ss, sso, sb, sbo, fss, fsb,
                 acc, cont, cell_idx, bounds, fp, ip):
@@ -732,10 +759,7 @@ def _accel_pass(pos, vel, rho, mass, sig, psig, kind, nz, wn, dcl, grd, ss, sso,
     half_t = fp[F_HALFT]
     arc = ip[I_ARC] != 0
     for i in prange(nr + ip[I_NG]):
-        r = rho[i]
-        inv2 = 1.0 / (r * r)
-        for c in range(6):
-            psig[i, c] = sig[i, c] * inv2
+        _psig_one(i, rho, sig, psig)
     nch = ip[I_NCHUNK]
     for i in prange(nr):
         for c in range(6):
@@ -749,26 +773,77 @@ def _accel_pass(pos, vel, rho, mass, sig, psig, kind, nz, wn, dcl, grd, ss, sso,
                            nr, fp)
 
 
+@njit(inline="always", fastmath=True)
+def _kick_one(i, pos, vel, mass, rho, sig, kind, acc, cont, fdamp, fp, ip):
+    """Kick, contact guard and drift of the real particle i (granular only; see
+    :func:`_kick`). Returns (its force on the plate x, y, z; 1 if it left the box and became
+    LOST, else 0; whether it went non-finite or faster than sound)."""
+    if kind[i] != SOIL:
+        return 0.0, 0.0, 0.0, 0, False
+    dt = fp[F_DT]
+    ly = fp[F_LY]
+    nvx = (vel[i, 0] + dt * acc[i, 0]) * fdamp
+    nvy = (vel[i, 1] + dt * acc[i, 1]) * fdamp
+    nvz = (vel[i, 2] + dt * (acc[i, 2] + fp[F_GZ])) * fdamp
+    fx = acc[i, 3]
+    fy = acc[i, 4]
+    fz = acc[i, 5]
+    pn = cont[i, 1]
+    dp = 0.0
+    gnx = cont[i, 2]  # the guarded face's outward normal
+    gnz = cont[i, 3]
+    if pn != 0.0:  # the guard: no approach faster than the plate's rigid motion there
+        om = fp[F_OM]
+        vn = ((nvx - fp[F_VX] + om * (pos[i, 2] - fp[F_CZ])) * gnx
+              + (nvz - fp[F_VZ] - om * (pos[i, 0] - fp[F_CX])) * gnz)
+        if vn < 0.0:
+            nvx -= vn * gnx
+            nvz -= vn * gnz
+            fx += mass[i] * vn * gnx / dt
+            fz += mass[i] * vn * gnz / dt
+        dp = min(fp[F_GAP] - cont[i, 0], fp[F_MAXPUSH])
+    vel[i, 0] = nvx
+    vel[i, 1] = nvy
+    vel[i, 2] = nvz
+    x = pos[i, 0] + dt * nvx + dp * gnx
+    y = pos[i, 1] + dt * nvy
+    z = pos[i, 2] + dt * nvz + dp * gnz
+    flip_x = ip[I_MX] != 0 and x < 0.0
+    flip_y = (ip[I_MY0] != 0 and y < 0.0) or (ip[I_MY1] != 0 and y > ly)
+    if flip_x:
+        x = -x
+        vel[i, 0] = -vel[i, 0]
+        sig[i, S_XY] = -sig[i, S_XY]
+        sig[i, S_XZ] = -sig[i, S_XZ]
+    if flip_y:
+        y = -y if y < 0.0 else 2.0 * ly - y
+        vel[i, 1] = -vel[i, 1]
+        sig[i, S_XY] = -sig[i, S_XY]
+        sig[i, S_YZ] = -sig[i, S_YZ]
+    pos[i, 0] = x
+    pos[i, 1] = y
+    pos[i, 2] = z
+    if x > fp[F_XHIB] or x < fp[F_XLOB] or y > fp[F_YHIB] or z < fp[F_ZLOB]:
+        kind[i] = LOST
+        pos[i, 0] = 1e3 + i
+        pos[i, 1] = 1e3
+        pos[i, 2] = 1e3
+        return fx, fy, fz, 1, False
+    v2 = nvx * nvx + nvy * nvy + nvz * nvz
+    vmax = fp[F_VMAX]
+    return fx, fy, fz, 0, not (v2 < vmax * vmax and math.isfinite(x + y + z + rho[i] + sig[i, S_ZZ]))
+
+
 @njit(cache=True, fastmath=True, parallel=True)
 def _kick(pos, vel, mass, rho, sig, kind, acc, cont, damp, force, part, fp, ip):
-    """Kick, contact guard and drift of the real granular particles; mirror reflection at
-    the symmetry planes; granular particles that left the box become LOST. Adds the force on
-    the plate (pair forces + the guard's momentum) to force (3,). Returns the index of a
-    particle that went non-finite or faster than sound, or -1. In parallel over fixed blocks
-    of particles (part: their (force x, y, z, lost, bad) rows), summed in block order, so the
-    force does not depend on the number of threads."""
+    """Kick, contact guard and drift of the real granular particles (:func:`_kick_one`);
+    mirror reflection at the symmetry planes; granular particles that left the box become
+    LOST. Adds the force on the plate (pair forces + the guard's momentum) to force (3,).
+    Returns the index of a particle that went non-finite or faster than sound, or -1. In
+    parallel over fixed blocks of particles (part: their (force x, y, z, lost, bad) rows),
+    summed in block order, so the force does not depend on the number of threads."""
     nr = ip[I_NR]
-    dt = fp[F_DT]
-    gz = fp[F_GZ]
-    fdamp = 1.0 / (1.0 + damp * dt)
-    gap = fp[F_GAP]
-    max_push = fp[F_MAXPUSH]
-    vmax = fp[F_VMAX]
-    ly = fp[F_LY]
-    mx = ip[I_MX] != 0
-    my0 = ip[I_MY0] != 0
-    my1 = ip[I_MY1] != 0
-    cx, cz, pvx, pvz, om = fp[F_CX], fp[F_CZ], fp[F_VX], fp[F_VZ], fp[F_OM]
+    fdamp = 1.0 / (1.0 + damp * fp[F_DT])
     nblk = part.shape[0]
     for blk in prange(nblk):
         bfx = 0.0
@@ -777,60 +852,13 @@ def _kick(pos, vel, mass, rho, sig, kind, acc, cont, damp, force, part, fp, ip):
         blost = 0
         bbad = -1
         for i in range(nr * blk // nblk, nr * (blk + 1) // nblk):
-            if kind[i] != SOIL:
-                continue
-            nvx = (vel[i, 0] + dt * acc[i, 0]) * fdamp
-            nvy = (vel[i, 1] + dt * acc[i, 1]) * fdamp
-            nvz = (vel[i, 2] + dt * (acc[i, 2] + gz)) * fdamp
-            fx = acc[i, 3]
-            fy = acc[i, 4]
-            fz = acc[i, 5]
-            pn = cont[i, 1]
-            dp = 0.0
-            gnx = cont[i, 2]  # the guarded face's outward normal
-            gnz = cont[i, 3]
-            if pn != 0.0:  # the guard: no approach faster than the plate's rigid motion there
-                vn = ((nvx - pvx + om * (pos[i, 2] - cz)) * gnx
-                      + (nvz - pvz - om * (pos[i, 0] - cx)) * gnz)
-                if vn < 0.0:
-                    nvx -= vn * gnx
-                    nvz -= vn * gnz
-                    fx += mass[i] * vn * gnx / dt
-                    fz += mass[i] * vn * gnz / dt
-                dp = min(gap - cont[i, 0], max_push)
+            fx, fy, fz, lost, bad = _kick_one(i, pos, vel, mass, rho, sig, kind, acc, cont,
+                                              fdamp, fp, ip)
             bfx += fx
             bfy += fy
             bfz += fz
-            vel[i, 0] = nvx
-            vel[i, 1] = nvy
-            vel[i, 2] = nvz
-            x = pos[i, 0] + dt * nvx + dp * gnx
-            y = pos[i, 1] + dt * nvy
-            z = pos[i, 2] + dt * nvz + dp * gnz
-            flip_x = mx and x < 0.0
-            flip_y = (my0 and y < 0.0) or (my1 and y > ly)
-            if flip_x:
-                x = -x
-                vel[i, 0] = -vel[i, 0]
-                sig[i, S_XY] = -sig[i, S_XY]
-                sig[i, S_XZ] = -sig[i, S_XZ]
-            if flip_y:
-                y = -y if y < 0.0 else 2.0 * ly - y
-                vel[i, 1] = -vel[i, 1]
-                sig[i, S_XY] = -sig[i, S_XY]
-                sig[i, S_YZ] = -sig[i, S_YZ]
-            pos[i, 0] = x
-            pos[i, 1] = y
-            pos[i, 2] = z
-            if x > fp[F_XHIB] or x < fp[F_XLOB] or y > fp[F_YHIB] or z < fp[F_ZLOB]:
-                kind[i] = LOST
-                pos[i, 0] = 1e3 + i
-                pos[i, 1] = 1e3
-                pos[i, 2] = 1e3
-                blost += 1
-                continue
-            v2 = nvx * nvx + nvy * nvy + nvz * nvz
-            if not (v2 < vmax * vmax and math.isfinite(x + y + z + rho[i] + sig[i, S_ZZ])):
+            blost += lost
+            if bad:
                 bbad = i
         part[blk, 0] = bfx
         part[blk, 1] = bfy
@@ -848,14 +876,17 @@ def _kick(pos, vel, mass, rho, sig, kind, acc, cont, damp, force, part, fp, ip):
     return bad
 
 
-@njit(cache=True, fastmath=True, parallel=True)
-def _sides(pos, kind, side, fp, ip):
+@njit(inline="always", fastmath=True)
+def _side_one(i, pos, kind, side, fp, ip):
     """Side of the plate of every real granular particle: +1 / -1 on the side its normal
     points to / the other, where it lies over the plate (|(r - c) . u| <= a along the chord,
     |y| <= b, or any y in the slab) within the side reach (2h + t/2) of the mid-plane, 0
     elsewhere (the 2D side test). A curved leg (an arc of radius R about the body point (0,
     q_c), bulging towards sg n): +1 outside the arc's circle, -1 inside, where the particle
-    lies within the arc's angular span and within the reach of the mid-arc."""
+    lies within the arc's angular span and within the reach of the mid-arc. This: particle
+    i (granular only)."""
+    if kind[i] != SOIL:
+        return
     a = fp[F_PA]
     b = fp[F_PB]
     reach = fp[F_SREACH]
@@ -863,22 +894,35 @@ def _sides(pos, kind, side, fp, ip):
     arc = ip[I_ARC] != 0
     rad, qc, sg, cphi = fp[F_ARCR], fp[F_ARCQC], fp[F_ARCSG], fp[F_ARCCOS]
     cx, cz, ux, uz = fp[F_CX], fp[F_CZ], fp[F_UX], fp[F_UZ]
+    rx = pos[i, 0] - cx
+    rz = pos[i, 2] - cz
+    dn = -rx * uz + rz * ux
+    s = 0.0
+    if arc:
+        su = rx * ux + rz * uz
+        dq = sg * (dn - qc)
+        rr = math.sqrt(su * su + dq * dq)
+        if dq >= rr * cphi and (slab or abs(pos[i, 1]) <= b) and abs(rr - rad) < reach:
+            s = 1.0 if rr > rad else -1.0
+    elif abs(rx * ux + rz * uz) <= a and (slab or abs(pos[i, 1]) <= b) and abs(dn) < reach:
+        s = 1.0 if dn > 0.0 else -1.0
+    side[i] = s
+
+
+@njit(cache=True, fastmath=True, parallel=True)
+def _sides(pos, kind, side, fp, ip):
+    """Side of the plate of every real granular particle (:func:`_side_one`)."""
     for i in prange(ip[I_NR]):
-        if kind[i] != SOIL:
-            continue
-        rx = pos[i, 0] - cx
-        rz = pos[i, 2] - cz
-        dn = -rx * uz + rz * ux
-        s = 0.0
-        if arc:
-            su = rx * ux + rz * uz
-            dq = sg * (dn - qc)
-            rr = math.sqrt(su * su + dq * dq)
-            if dq >= rr * cphi and (slab or abs(pos[i, 1]) <= b) and abs(rr - rad) < reach:
-                s = 1.0 if rr > rad else -1.0
-        elif abs(rx * ux + rz * uz) <= a and (slab or abs(pos[i, 1]) <= b) and abs(dn) < reach:
-            s = 1.0 if dn > 0.0 else -1.0
-        side[i] = s
+        _side_one(i, pos, kind, side, fp, ip)
+
+
+@njit(inline="always", fastmath=True)
+def _disp2_one(i, pos, pb, kind):
+    """Squared displacement of particle i since the lists were built (0 when lost)."""
+    if kind[i] == LOST:
+        return 0.0
+    return ((pos[i, 0] - pb[i, 0]) ** 2 + (pos[i, 1] - pb[i, 1]) ** 2
+            + (pos[i, 2] - pb[i, 2]) ** 2)
 
 
 @njit(cache=True, fastmath=True, parallel=True)
@@ -889,10 +933,7 @@ def _max_disp2(pos, pb, kind, nr, part):
     for blk in prange(nblk):
         m = 0.0
         for i in range(nr * blk // nblk, nr * (blk + 1) // nblk):
-            if kind[i] == LOST:
-                continue
-            d = ((pos[i, 0] - pb[i, 0]) ** 2 + (pos[i, 1] - pb[i, 1]) ** 2
-                 + (pos[i, 2] - pb[i, 2]) ** 2)
+            d = _disp2_one(i, pos, pb, kind)
             if d > m:
                 m = d
         part[blk, 0] = m
@@ -900,6 +941,28 @@ def _max_disp2(pos, pb, kind, nr, part):
     for blk in range(nblk):
         mall = max(mall, part[blk, 0])
     return mall
+
+
+@njit(inline="always", fastmath=True)
+def _place_marker(kk, pos, vel, wn, bo, bn, lidx, fp):
+    """Plate marker kk (particle lidx[kk]) at the step's pose (fp's F_CX..F_OM): position,
+    rigid-body velocity and its face's outward normal."""
+    cx = fp[F_CX]
+    cz = fp[F_CZ]
+    ux = fp[F_UX]
+    uz = fp[F_UZ]
+    om = fp[F_OM]
+    w = lidx[kk]
+    x = cx + bo[kk, 0] * ux - bo[kk, 2] * uz
+    z = cz + bo[kk, 0] * uz + bo[kk, 2] * ux
+    pos[w, 0] = x
+    pos[w, 1] = bo[kk, 1]
+    pos[w, 2] = z
+    vel[w, 0] = fp[F_VX] - om * (z - cz)
+    vel[w, 1] = 0.0
+    vel[w, 2] = fp[F_VZ] + om * (x - cx)
+    wn[w, 0] = bn[kk, 0] * ux - bn[kk, 1] * uz
+    wn[w, 1] = bn[kk, 0] * uz + bn[kk, 1] * ux
 
 
 @njit(cache=True)
@@ -933,17 +996,7 @@ def steps3d(pose, damp, forces, pos, vel, gv, rho, mass, sig, kind, nz, wn, dcl,
         fp[F_OM] = om
         if ip[I_PLATE]:
             for kk in range(lidx.shape[0]):
-                w = lidx[kk]
-                x = cx + bo[kk, 0] * ux - bo[kk, 2] * uz
-                z = cz + bo[kk, 0] * uz + bo[kk, 2] * ux
-                pos[w, 0] = x
-                pos[w, 1] = bo[kk, 1]
-                pos[w, 2] = z
-                vel[w, 0] = pvx - om * (z - cz)
-                vel[w, 1] = 0.0
-                vel[w, 2] = pvz + om * (x - cx)
-                wn[w, 0] = bn[kk, 0] * ux - bn[kk, 1] * uz
-                wn[w, 1] = bn[kk, 0] * uz + bn[kk, 1] * ux
+                _place_marker(kk, pos, vel, wn, bo, bn, lidx, fp)
             _sides(pos, kind, side, fp, ip)
         if ip[I_BUILDS] == 0 or _max_disp2(pos, pb, kind, nr, part) > thr:
             ng = _make_ghosts(pos, kind, src, gs, go, fp, ip)
