@@ -183,8 +183,8 @@ _PTX = textwrap.dedent(r'''
     i32 = lambda m: np.zeros(m, np.int32)
     nb = neighbour_list(n, 1.3)
     grid = Grid(1.0, 1.0, 1.0, 1.0, 3, 4)
-    par_s = StrainPar(*grid, *(1.0,) * 8, True, 0.0, 0.0, 1.0, 0.0)
-    par_a = SOURCES["_accel_par"](*(1.0,) * 4, True, *(1.0,) * 13, 3, 4, 1.0, 1.0, 1.0, 0.0)
+    par_s = StrainPar(*grid, *(1.0,) * 10, True, 0.0, 0.0, 1.0, 1.0)
+    par_a = SOURCES["_accel_par"](*(1.0,) * 4, True, *(1.0,) * 13, 3, 4, 1.0, 1.0, 1.0, 0.0, -1.0)
     args = {
         "_k_count": (S, 1.0, 1.0, 1.0, 3, 4, i32(nc), i32(n), i32(n)),
         "_k_scan_blocks": (i32(nc), i32(nc), i32(4), i32(64), 1),

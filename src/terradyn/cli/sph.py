@@ -374,16 +374,20 @@ def leg3d_cmd(medium: str = _MEDIUM, density_kg_m3: Optional[float] = _DENSITY,
               out: Optional[Path] = typer.Option(None, "--out", "-o", help="Write the curves and peaks as JSON here (stdout gets the summary)."),
               plot: Optional[Path] = typer.Option(None, help="Figure: lift and thrust against the leg angle, with the measured curve where there is one."),
               checkpoint: Optional[Path] = typer.Option(None, help="Checkpoint file: written every minute; a rerun with the same options resumes from it (same forces as a run never stopped)."),
-              so_far: bool = typer.Option(False, "--so-far", help="Run nothing: the curve and peaks so far of the run (same options) whose --checkpoint is there, stopped or still going.")):
-    """A leg of the rotating-leg test in 3D (its real 2.54 cm width; runs on NUMBA_NUM_THREADS threads, same forces on any number)."""
+              so_far: bool = typer.Option(False, "--so-far", help="Run nothing: the curve and peaks so far of the run (same options) whose --checkpoint is there, stopped or still going."),
+              backend: Backend = _BACKEND):
+    """A leg of the rotating-leg test in 3D (its real 2.54 cm width; on the CPU on NUMBA_NUM_THREADS threads, same forces on any number; or on an NVIDIA GPU)."""
     from .. import io
     from ..sph import plate3d, plots
     from ..sph.state import SPHConfig
     from ..sph.suite import leg_scores, measured_legs
     from ..units import DEG
 
+    from ..sph.solver import resolve_backend
+
     plate3d.leg_curvature(leg)  # an unknown leg: an error before any work
-    cfg = SPHConfig(dx=_dx(dx_mm))
+    cfg = SPHConfig(dx=_dx(dx_mm), backend=Backend(backend).value)
+    resolve_backend(cfg.backend)  # --backend gpu without a GPU: fail before any work
     if slab is not None:
         integer("slab", slab, 4)
     io.check_output(out, "out", (".json",))

@@ -1286,7 +1286,9 @@ def plate_scene(medium: str | GranularMaterial = "3 mm glass CP", *, dx: float =
 
 # ----------------------------------------------------------------------------- the solver
 class Solver3D:
-    """Advances a :class:`Scene3D` (parallel Numba kernels, :func:`steps3d`)."""
+    """Advances a :class:`Scene3D`: parallel Numba kernels (:func:`steps3d`), or with
+    ``SPHConfig(backend="gpu")`` (or ``"auto"`` where Numba sees a GPU) the same physics on an
+    NVIDIA GPU (:mod:`terradyn.sph.gpu3d`)."""
 
     def __init__(self, scene: Scene3D, *, plate_speed: float = 0.0):
         self.scene = sc = scene
@@ -1304,6 +1306,9 @@ class Solver3D:
         if mat.mu_rise > 0.0:  # dp_update3 has no rate dependence: refuse, never ignore
             raise InputError("rheology", "mu(I) ('mu-i') is in the 2D solver only; the 3D solver's "
                              "friction is rate-independent: use rheology 'constant'")
+        from .solver import resolve_backend
+
+        self.backend = resolve_backend(cfg.backend)
         nr = len(sc)
         self.nr = nr
         self.h = cfg.h
@@ -1463,14 +1468,19 @@ class Solver3D:
         out = np.zeros((len(pose), 3))
         done = 0
         while done < len(pose):
-            d, code = steps3d(pose[done:], damp[done:], out[done:], self.pos,
-                              self.vel, self.gv, self.rho, self.mass, self.sig, self.kind,
-                              self.nz, self.wn, self.dcl, self.grd, self.side, self.src,
-                              self.gs, self.go, self.bo, self.bn, self.lidx, self.pb,
-                              self.cell_start, self.cell_idx, self.rank, self.bounds, self.ss,
-                              self.sso, self.sb, self.sbo, self.fss, self.fsb, self.wsb,
-                              self.lg, self.acc, self.cont, self.bacc, self.psig, self.part,
-                              self.fp, self.ip)
+            if self.backend == "gpu":
+                from .gpu3d import steps_gpu
+
+                d, code = steps_gpu(self, pose[done:], damp[done:], out[done:])
+            else:
+                d, code = steps3d(pose[done:], damp[done:], out[done:], self.pos,
+                                  self.vel, self.gv, self.rho, self.mass, self.sig, self.kind,
+                                  self.nz, self.wn, self.dcl, self.grd, self.side, self.src,
+                                  self.gs, self.go, self.bo, self.bn, self.lidx, self.pb,
+                                  self.cell_start, self.cell_idx, self.rank, self.bounds,
+                                  self.ss, self.sso, self.sb, self.sbo, self.fss, self.fsb,
+                                  self.wsb, self.lg, self.acc, self.cont, self.bacc,
+                                  self.psig, self.part, self.fp, self.ip)
             done += int(d)
             self.step_count += int(d)
             self.t += int(d) * self.dt
