@@ -317,8 +317,14 @@ def steps_gpu(s, pose, damp, out) -> tuple[int, int]:
             code = _rebuild(s)
             if code != P.OK:
                 break
-            for name in LISTS:
-                d[name].copy_to_device(getattr(s, name))
+            n_list = nr + int(ip[P.I_NG])
+            used = {"ss": int(ip[P.I_NSS]), "sb": int(ip[P.I_NSB]), "sso": n_list + 1,
+                    "sbo": n_list + 1, "src": n_list, "gs": n_list, "go": n_list,
+                    "ip": len(ip)}
+            for name in LISTS:  # only the part the passes read
+                m = used[name]
+                if m > 0:
+                    d[name][:m].copy_to_device(getattr(s, name)[:m])
             d["pb"].copy_to_device(s.pb)
         n_all = nr + int(ip[P.I_NG])
         ghosts = (B(int(ip[P.I_NG])), TPB)
