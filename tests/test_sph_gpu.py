@@ -8,14 +8,11 @@ The pytest process itself never imports the simulator.
 """
 from __future__ import annotations
 
-import json
-import os
-import subprocess
-import sys
 import textwrap
 
 import numpy as np
 import pytest
+from gpu_checks import compile_ptx_checks, run_checks
 
 from terradyn.errors import InputError
 from terradyn.sph import SPHConfig, scenes, solver
@@ -123,15 +120,7 @@ _CHECKS = textwrap.dedent(r'''
 
 def _run_checks() -> dict:
     """All GPU checks, in one subprocess under the CUDA simulator (or on a real device)."""
-    env = dict(os.environ)
-    device = os.environ.get("TERRADYN_GPU_TEST") == "device"
-    if not device:
-        env["NUMBA_ENABLE_CUDASIM"] = "1"
-    p = subprocess.run([sys.executable, "-c", _CHECKS, "40" if device else "12"], env=env,
-                       capture_output=True, text=True, timeout=900)
-    assert p.returncode == 0, p.stderr[-3000:]
-    line = [ln for ln in p.stdout.splitlines() if ln.startswith("RESULT ")][-1]
-    return json.loads(line[len("RESULT "):])
+    return run_checks(_CHECKS, 12)
 
 
 def test_gpu_backend_under_the_cuda_simulator():
@@ -214,15 +203,7 @@ _PTX = textwrap.dedent(r'''
 def test_gpu_kernels_compile_for_hopper():
     """Real CUDA compilation (type inference, lowering, NVVM) to PTX for sm_90, which the
     simulator does not do; needs numba-cuda with its CUDA toolkit wheels, no GPU."""
-    import importlib.util
-
-    if importlib.util.find_spec("numba_cuda") is None:
-        pytest.skip("numba-cuda is not installed (the 'gpu' extra)")
-    env = {k: v for k, v in os.environ.items() if k != "NUMBA_ENABLE_CUDASIM"}
-    p = subprocess.run([sys.executable, "-c", _PTX], env=env, capture_output=True, text=True,
-                       timeout=600)
-    assert p.returncode == 0, p.stderr[-3000:]
-    assert p.stdout.count(" ok") == 15
+    assert compile_ptx_checks(_PTX).count(" ok") == 15
 
 
 # ------------------------------------------------------------------------ in-process, no GPU

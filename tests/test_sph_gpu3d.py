@@ -7,19 +7,17 @@ extra) the kernels are also compiled to PTX for sm_90, which the simulator does 
 """
 from __future__ import annotations
 
-import json
-import os
-import subprocess
-import sys
 import textwrap
 
 import numpy as np
 import pytest
+from gpu_checks import compile_ptx_checks, run_checks
 
 from terradyn.errors import InputError
 
 _CHECKS = textwrap.dedent(r'''
     import json, math, sys
+    sys.setswitchinterval(1e-5)  # the simulator's thread barriers: much faster
     import numpy as np
     from numba import config
     import terradyn.sph.plate3d as P
@@ -100,15 +98,8 @@ _CHECKS = textwrap.dedent(r'''
 
 
 def _run_checks() -> dict:
-    env = dict(os.environ)
-    device = os.environ.get("TERRADYN_GPU_TEST") == "device"
-    if not device:
-        env["NUMBA_ENABLE_CUDASIM"] = "1"
-    p = subprocess.run([sys.executable, "-c", _CHECKS, "40" if device else "3"], env=env,
-                       capture_output=True, text=True, timeout=900)
-    assert p.returncode == 0, p.stderr[-3000:]
-    line = [ln for ln in p.stdout.splitlines() if ln.startswith("RESULT ")][-1]
-    return json.loads(line[len("RESULT "):])
+    """All GPU checks, in one subprocess under the CUDA simulator (or on a real device)."""
+    return run_checks(_CHECKS, 3)
 
 
 def test_gpu3d_under_the_cuda_simulator_matches_the_cpu_kernels():
@@ -184,15 +175,7 @@ _PTX = textwrap.dedent(r'''
 def test_gpu3d_kernels_compile_for_hopper():
     """Real CUDA compilation of every 3D kernel to PTX for sm_90 (type inference, lowering,
     NVVM), which the simulator does not do; needs numba-cuda (the 'gpu' extra), no GPU."""
-    import importlib.util
-
-    if importlib.util.find_spec("numba_cuda") is None:
-        pytest.skip("numba-cuda is not installed (the 'gpu' extra)")
-    env = {k: v for k, v in os.environ.items() if k != "NUMBA_ENABLE_CUDASIM"}
-    p = subprocess.run([sys.executable, "-c", _PTX], env=env, capture_output=True, text=True,
-                       timeout=600)
-    assert p.returncode == 0, p.stderr[-3000:]
-    assert p.stdout.count(" ok") == 13
+    assert compile_ptx_checks(_PTX).count(" ok") == 13
 
 
 def test_only_the_pair_sums_become_atomic():
