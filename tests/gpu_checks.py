@@ -11,13 +11,25 @@ import sys
 
 
 def run_checks(code: str, sim_steps: int, device_steps: int = 40) -> dict:
+    """The subprocess compiles into a Numba cache of its own (a temporary folder): a fresh
+    CI clone once segfaulted in the CPU kernels here, loading the shared cache that the test
+    workers were writing at the same time, and ran with a fresh one."""
+    import shutil
+    import tempfile
+
     env = dict(os.environ)
     device = os.environ.get("TERRADYN_GPU_TEST") == "device"
     if not device:
         env["NUMBA_ENABLE_CUDASIM"] = "1"
-    p = subprocess.run([sys.executable, "-c", code, str(device_steps if device else sim_steps)],
-                       env=env, capture_output=True, text=True, timeout=900)
-    assert p.returncode == 0, p.stderr[-3000:]
+    cache = tempfile.mkdtemp(prefix="terradyn-gpu-test-cache-")
+    env["NUMBA_CACHE_DIR"] = cache
+    try:
+        p = subprocess.run([sys.executable, "-c", code,
+                            str(device_steps if device else sim_steps)],
+                           env=env, capture_output=True, text=True, timeout=900)
+    finally:
+        shutil.rmtree(cache, ignore_errors=True)
+    assert p.returncode == 0, f"rc {p.returncode}\n{p.stderr[-3000:]}\n{p.stdout[-1000:]}"
     line = [ln for ln in p.stdout.splitlines() if ln.startswith("RESULT ")][-1]
     return json.loads(line[len("RESULT "):])
 
