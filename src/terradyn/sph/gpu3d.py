@@ -39,7 +39,6 @@ import numpy as np
 from numba import config, cuda
 
 from . import plate3d as P
-from .state import LOST
 
 SIM = bool(config.ENABLE_CUDASIM)
 #: Threads per block; in the simulator (every thread a Python thread) at most SIM_BLOCKS
@@ -125,7 +124,7 @@ _kick_one = _D["_kick_one"]
 _side_one = _D["_side_one"]
 _disp2_one = _D["_disp2_one"]
 _place_marker = _D["_place_marker"]
-_F_H, _F_GZ, _F_C0, _F_AVA, _F_AVB, _F_HALFT, _F_DT = P.F_H, P.F_GZ, P.F_C0, P.F_AVA, P.F_AVB, P.F_HALFT, P.F_DT
+_F_H, _F_GZ, _F_C0, _F_AVA, _F_AVB, _F_HALFT = P.F_H, P.F_GZ, P.F_C0, P.F_AVA, P.F_AVB, P.F_HALFT
 _W3D = P._W3D
 
 
@@ -361,10 +360,8 @@ def steps_gpu(s, pose, damp, out) -> tuple[int, int]:
             break
     fl = flags.copy_to_host()
     for name in STATE:
-        if name in LISTS and name != "ip":
-            continue  # the host's lists are the newest
-        if name == "ip":
-            continue
+        if name in LISTS:
+            continue  # the host's lists, ghost maps and counters are the newest
         d[name].copy_to_host(getattr(s, name))
     ip[P.I_LOST] = lost0 + int(fl[0])
     out[:done] = forces.copy_to_host()[:done]
