@@ -288,6 +288,20 @@ def test_leg3d_figure_labels_what_it_draws(tmp_path):
     assert [a.get_ylabel() for a in fig.axes] == ["lift $F_z$ (N)", "thrust $F_x$ (N)"]
     leg3d(pts, {"Fz": (th, th), "Fx": (th, th)}, tmp_path / "f.png")
     assert (tmp_path / "f.png").stat().st_size > 1000
+    # two spacings, the finer read part-way (None past the angle it reached): labelled by
+    # spacing and reach, in two colours, the missing part not drawn
+    part = [None if t > 0 else 1.0 for t in th]
+    pts = [{"kind": "finite", "dx_mm": 4.0, "theta_deg": th, "Fx_N": np.cos(th * DEG),
+            "Fz_N": np.sin(th * DEG)},
+           {"kind": "finite", "dx_mm": 3.0, "theta_deg": th, "Fx_N": part, "Fz_N": part,
+            "partial_to_deg": 0.4}]
+    fig = leg3d(pts, {"Fz": (th, th), "Fx": (th, th)})
+    labels = [t.get_text() for t in fig.legends[0].get_texts()]
+    assert labels[:2] == ["SPH 3D, 2.54 cm wide leg, 4 mm particles",
+                          "SPH 3D, 2.54 cm wide leg, 3 mm particles (run to 0 deg)"]
+    lines = fig.axes[0].get_lines()
+    assert lines[0].get_color() != lines[1].get_color()
+    assert np.isnan(lines[1].get_ydata()[th > 0]).all()
 
 
 def _pushed_solver(steps=60):

@@ -145,10 +145,23 @@ def rig_maps(r: dict, path=None, title: str = ""):
 
 
 def leg3d(points: list[dict], measured: dict, path=None, title: str = ""):
-    """The flat leg in 3D (``benchmarks/sph_leg3d.py`` points: ``kind`` slab or finite,
-    ``theta_deg``, ``Fx_N``, ``Fz_N``) beside the measured curve (``measured``: {"Fz": (theta
-    deg, N), "Fx": (...)}), lift and thrust against the leg angle."""
+    """A leg in 3D (``benchmarks/sph_leg3d.py`` points: ``kind`` slab or finite, ``dx_mm``,
+    ``theta_deg``, ``Fx_N``, ``Fz_N``; None past ``partial_to_deg`` for a run read part-way)
+    beside the measured curve (``measured``: {"Fz": (theta deg, N), "Fx": (...)}), lift and
+    thrust against the leg angle. Points at several spacings are labelled by spacing."""
     styles = {"finite": {"color": "#d1495b", "label": "SPH 3D, 2.54 cm wide leg"},
               "slab": {"color": "#30638e", "ls": "--", "label": "SPH 3D, plane-strain slab"}}
-    curves = [(p["theta_deg"], {"Fz": p["Fz_N"], "Fx": p["Fx_N"]}, styles[p["kind"]]) for p in points]
+    spacings = sorted({p["dx_mm"] for p in points if p.get("dx_mm") is not None}, reverse=True)
+    shades = ["#d1495b", "#edae49", "#00798c", "#30638e"]
+    curves = []
+    for p in points:
+        kw = dict(styles[p["kind"]])
+        if len(spacings) > 1 and p.get("dx_mm") is not None:
+            kw["label"] += f", {p['dx_mm']:g} mm particles"
+            if p["kind"] == "finite":
+                kw["color"] = shades[spacings.index(p["dx_mm"]) % len(shades)]
+        if p.get("partial_to_deg") is not None:
+            kw["label"] += f" (run to {p['partial_to_deg']:.0f} deg)"
+        curves.append((p["theta_deg"], {c: np.asarray(p[f"{c}_N"], float) for c in ("Fz", "Fx")},
+                       kw))
     return _lift_thrust(curves, measured, path, title)
