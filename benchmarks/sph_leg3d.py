@@ -195,7 +195,8 @@ def main() -> None:
         e = exp[(exp.medium == medium) & (exp.leg == leg)]
         meas = {c: (e[e.force == c].theta_deg.values, e[e.force == c].force_N.values)
                 for c in ("Fz", "Fx")}
-        spacing = ("" if len({p["dx_mm"] for p in pts}) > 1 else f", {a.dx_mm:g} mm particles")
+        spacing = (", 2.54 cm wide, 3D" if len({p["dx_mm"] for p in pts}) > 1
+                   else f", {a.dx_mm:g} mm particles")
         plots.leg3d(pts, meas, a.figure, title=f"{leg} leg, {medium}, omega = {a.omega:g} rad/s"
                                                f"{spacing}")
 

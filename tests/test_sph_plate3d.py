@@ -297,8 +297,7 @@ def test_leg3d_figure_labels_what_it_draws(tmp_path):
             "partial_to_deg": 0.4}]
     fig = leg3d(pts, {"Fz": (th, th), "Fx": (th, th)})
     labels = [t.get_text() for t in fig.legends[0].get_texts()]
-    assert labels[:2] == ["SPH 3D, 2.54 cm wide leg, 4 mm particles",
-                          "SPH 3D, 2.54 cm wide leg, 3 mm particles (run to 0 deg)"]
+    assert labels[:2] == ["SPH 3D, 4 mm particles", "SPH 3D, 3 mm particles (to 0 deg)"]
     lines = fig.axes[0].get_lines()
     assert lines[0].get_color() != lines[1].get_color()
     assert np.isnan(lines[1].get_ydata()[th > 0]).all()

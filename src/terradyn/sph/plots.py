@@ -156,12 +156,13 @@ def leg3d(points: list[dict], measured: dict, path=None, title: str = ""):
     curves = []
     for p in points:
         kw = dict(styles[p["kind"]])
-        if len(spacings) > 1 and p.get("dx_mm") is not None:
-            kw["label"] += f", {p['dx_mm']:g} mm particles"
+        if len(spacings) > 1 and p.get("dx_mm") is not None:  # short: the legend has 3 columns
+            kw["label"] = (f"SPH 3D{' slab' if p['kind'] == 'slab' else ''}, "
+                           f"{p['dx_mm']:g} mm particles")
             if p["kind"] == "finite":
                 kw["color"] = shades[spacings.index(p["dx_mm"]) % len(shades)]
         if p.get("partial_to_deg") is not None:
-            kw["label"] += f" (run to {p['partial_to_deg']:.0f} deg)"
+            kw["label"] += f" (to {p['partial_to_deg']:.0f} deg)"
         curves.append((p["theta_deg"], {c: np.asarray(p[f"{c}_N"], float) for c in ("Fz", "Fx")},
                        kw))
     return _lift_thrust(curves, measured, path, title)
