@@ -22,11 +22,7 @@ from pathlib import Path
 import numpy as np
 
 from terradyn.io import atomic_write_text
-from terradyn.media import stress_model
-from terradyn.motion import Rotation
-from terradyn.rft import simulate
-from terradyn.sph.suite import make_leg, measured_legs
-from terradyn.units import CM, DEG
+from terradyn.sph.suite import measured_grid_rft, measured_legs
 
 RES = Path(__file__).parent / "results"
 
@@ -49,14 +45,12 @@ def main() -> None:
     pts = [p for p in json.loads((RES / "sph_leg3d.json").read_text())["points"]
            if p["kind"] == "finite" and p["dx_mm"] == a.dx_mm and p["omega_rad_s"] == 1.1
            and p.get("partial_to_deg") is None]
-    mot = Rotation(omega=0.2, hip_height=2 * CM, theta_start=-135 * DEG, theta_end=135 * DEG,
-                   n_theta=271)
     rows = []
     for p in pts:
         medium, leg = p["medium"], p.get("leg", "flat")
         if not len(exp[(exp.medium == medium) & (exp.leg == leg)]):
             continue  # no measured curve (3 mm glass CP)
-        r = simulate(make_leg(leg), mot, stress_model(medium, "table", interp="linear"))
+        r = measured_grid_rft(medium, leg)
         for comp, name in (("Fz", "lift"), ("Fx", "thrust")):
             e = exp[(exp.medium == medium) & (exp.leg == leg) & (exp.force == comp)]
             th, meas = e.theta_deg.values, e.force_N.values
@@ -72,7 +66,7 @@ def main() -> None:
                 "rise_sph3d_deg": rise_deg(th, sph)})
     if not rows:
         raise SystemExit(f"no finite 3D points at {a.dx_mm:g} mm with measured curves")
-    res = {"rows": rows, "dx_mm": a.dx_mm, "rft": "Li 2013 Table S5 grid, linear; omega 0.2 rad/s",
+    res = {"rows": rows, "dx_mm": a.dx_mm, "rft": "Li 2013 Table S5 grid, linear (suite.measured_grid_rft)",
            "command": "python benchmarks/sph_leg3d_vs_rft.py"}
     atomic_write_text(a.out, json.dumps(res, indent=1))
     print(f"{'medium':16s} {'leg':9s} {'comp':6s} {'peak meas/RFT/SPH3D (N)':>26s}  "

@@ -173,21 +173,28 @@ def rig_table(rig: dict, name: str = "SPH rig", method: str = "linear"):
                        "SPH virtual plate rig (terradyn.sph.suite.rig_point)")
 
 
+def measured_grid_rft(medium: str, leg: str = "flat", omega: float = 1.1, hip_height: float = 2 * CM):
+    """RFT on Li 2013's measured grid (Table S5, linear) for the rotating-leg test of ``leg``
+    (flat, c or reverse-c; -135..135 deg, 271 angles): the sum of the medium's measured local
+    plate stresses along the leg, the baseline the leg scores compare with."""
+    from ..rft import simulate as rft_simulate
+
+    return rft_simulate(make_leg(leg), Rotation(omega=omega, hip_height=hip_height,
+                                                theta_start=-135 * DEG, theta_end=135 * DEG,
+                                                n_theta=271),
+                        stress_model(medium, "table", interp="linear"))
+
+
 def leg_scores(medium: str, theta_deg, fz, fx, omega: float = 1.1, leg: str = "flat") -> dict:
     """A leg's curve (e.g. :func:`terradyn.sph.plate3d.leg3d`'s) against Li 2013 Fig. S5's
     measured one for that leg (flat, c or reverse-c), as :func:`leg_vs_measured` scores the
     2D leg: measured peaks and the RMS differences over the measured angles (N), with RFT's
     (Table S5 grid, linear) beside them. Empty for a medium or leg without measured curves."""
-    from ..rft import simulate as rft_simulate
-
     exp = measured_legs()
     e = exp[(exp.medium == medium) & (exp.leg == leg)]
     if not len(e):
         return {}
-    rft = rft_simulate(make_leg(leg), Rotation(omega=omega, hip_height=2 * CM,
-                                                  theta_start=-135 * DEG, theta_end=135 * DEG,
-                                                  n_theta=271),
-                       stress_model(medium, "table", interp="linear"))
+    rft = measured_grid_rft(medium, leg, omega)
     out = {}
     for comp, name, curve in (("Fz", "lift", fz), ("Fx", "thrust", fx)):
         q = e[e.force == comp]
@@ -257,7 +264,6 @@ def leg_vs_measured(name: str, medium, *, omega=1.1, dx=4e-3, config=None, progr
     runs' scatter. ``store``: a directory where each finished run is kept and from which a
     rerun reads it (:func:`leg_run`): an interrupted study loses at most the run in progress,
     and that one resumes from its checkpoint; ``stored`` in the result counts the runs read."""
-    from ..rft import simulate as rft_simulate
     from .materials import from_medium, material
     from .state import SPHConfig
 
@@ -271,7 +277,6 @@ def leg_vs_measured(name: str, medium, *, omega=1.1, dx=4e-3, config=None, progr
         return Rotation(omega=omega, hip_height=2 * CM + 1e-8 * j, theta_start=-135 * DEG,
                         theta_end=135 * DEG, n_theta=271)
 
-    leg = make_leg(name)
     got = [leg_run(name, motion(j), mat, cfg, store=store, progress=progress) for j in range(n_real)]
     runs = [r for r, _ in got]
     sph = runs[0].copy()
@@ -280,7 +285,7 @@ def leg_vs_measured(name: str, medium, *, omega=1.1, dx=4e-3, config=None, progr
             sph[comp] = (sph[comp].dims, np.mean([r[comp].values for r in runs], axis=0))
     if n_real > 1:
         sph.attrs["realizations"] = n_real
-    rft = rft_simulate(leg, motion(), stress_model(mat.name, "table", interp="linear"))
+    rft = measured_grid_rft(mat.name, name, omega)
     out = {"sph": sph, "rft": rft, "realizations": n_real, "stored": sum(k for _, k in got)}
     for comp in ("Fx", "Fz"):
         e = exp[(exp.medium == mat.name) & (exp.leg == name) & (exp.force == comp)]
