@@ -31,6 +31,7 @@ from pathlib import Path
 
 import numpy as np
 
+from terradyn.errors import InputError
 from terradyn.io import atomic_write_text
 from terradyn.media import LI2013
 from terradyn.sph.materials import from_medium
@@ -116,6 +117,8 @@ def main() -> None:
     a = ap.parse_args()
     if a.friction_deg is not None and not 10 <= a.friction_deg <= 60:
         ap.error(f"--friction-deg: 10 to 60 deg, got {a.friction_deg:g} deg")
+    if a.compare is not None and (a.figure is None or not a.compare.is_file()):
+        ap.error(f"--compare: needs --figure and an existing results file, got {a.compare}")
     res = (json.loads(a.out.read_text()) if a.out.exists()
            else {"machine": platform.processor() or platform.machine(), "points": []})
 
@@ -150,9 +153,12 @@ def main() -> None:
         fixed = "" if a.friction_deg is None else f"_{a.friction_deg:g}deg"
         ck = a.out.with_name(f"{a.out.stem}.{medium.replace(' ', '_')}.{kind}.{leg}."
                              f"{a.dx_mm:g}mm{fixed}.checkpoint.npz")
-        r = leg3d(mat, shape=leg, config=SPHConfig(dx=a.dx_mm * 1e-3), omega=a.omega,
-                  slab=SLAB if kind == "slab" else None, progress=progress, checkpoint=ck,
-                  so_far=a.so_far)
+        try:
+            r = leg3d(mat, shape=leg, config=SPHConfig(dx=a.dx_mm * 1e-3), omega=a.omega,
+                      slab=SLAB if kind == "slab" else None, progress=progress, checkpoint=ck,
+                      so_far=a.so_far)
+        except InputError as err:  # e.g. --so-far with no checkpoint, or one still settling
+            ap.error(f"{spec}: {err}")
         if r["resumed_from"]:
             print(f"  {spec}: resumed from {ck} at step {r['resumed_from']['step']}", flush=True)
         p = {"medium": medium, "kind": kind, "leg": leg, "dx_mm": a.dx_mm, "omega_rad_s": a.omega,
